@@ -1,0 +1,335 @@
+//! File work of the preview app, as plain functions taking a path (the UI
+//! only asks a dialog for the path and runs these off the UI thread):
+//! the HDR panorama export, saving the view, saving and loading scenes, and
+//! writing the window screenshot. Every file is written atomically (a
+//! temporary file in the target directory, renamed into place), so a
+//! failure or a cancel never leaves a half-written file behind.
+
+use std::io::{BufWriter, Write as _};
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
+use std::sync::Arc;
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use image::ImageEncoder as _;
+
+use super::state::{DisplaySettings, ToneCurve};
+use crate::output::{self, OutputFormat};
+use crate::render::service::Frame;
+use crate::scene::Scene;
+
+/// Check that `path` can take an HDR export before rendering: it must end in
+/// `.exr`, must not be a directory, and its directory must exist and be
+/// writable.
+pub fn check_export_path(path: &Path) -> Result<(), String> {
+    match OutputFormat::from_path(path) {
+        Ok(OutputFormat::Exr) => {}
+        Ok(OutputFormat::Png) => {
+            return Err(format!(
+                "cannot export to '{}': the HDR panorama is an OpenEXR file (.exr)",
+                path.display()
+            ))
+        }
+        Err(e) => return Err(e.to_string()),
+    }
+    check_writable(path)
+}
+
+/// `path` is not a directory and a file can be created beside it.
+fn check_writable(path: &Path) -> Result<(), String> {
+    if path.is_dir() {
+        return Err(format!(
+            "cannot write '{}': it is a directory",
+            path.display()
+        ));
+    }
+    let dir = parent_dir(path);
+    tempfile::NamedTempFile::new_in(dir)
+        .map(drop)
+        .map_err(|e| format!("cannot write '{}': {e}", path.display()))
+}
+
+fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p,
+        _ => Path::new("."),
+    }
+}
+
+/// Render `scene` (already set to an equirectangular camera, the export size
+/// and spp; see [`super::AppState::export_scene`]) into the EXR at `path`,
+/// exactly as `skyrender render` does ([`crate::cli::render_to_file`]).
+/// Blocks; `progress` receives the completed passes, `cancel` stops between
+/// rows. Returns the wall-clock time.
+pub fn export_panorama(
+    scene: &Scene,
+    path: &Path,
+    cancel: &AtomicBool,
+    progress: &AtomicU32,
+) -> Result<Duration, String> {
+    let start = Instant::now();
+    check_export_path(path)?;
+    crate::cli::render_to_file(scene, path, cancel, |pass, _| {
+        progress.store(pass, Ordering::Relaxed);
+    })
+    .map_err(|e| e.to_string())?;
+    Ok(start.elapsed())
+}
+
+/// A running HDR panorama export on its own thread.
+pub struct ExportJob {
+    /// Target file.
+    pub path: PathBuf,
+    /// Passes in all.
+    pub total: u32,
+    progress: Arc<AtomicU32>,
+    cancel: Arc<AtomicBool>,
+    handle: Option<JoinHandle<Result<Duration, String>>>,
+}
+
+impl ExportJob {
+    /// Start exporting `scene` to `path` in the background; `on_done` runs
+    /// on the export thread when it ends (e.g. to wake the UI).
+    pub fn start(
+        scene: Scene,
+        path: PathBuf,
+        on_done: impl FnOnce() + Send + 'static,
+    ) -> Result<Self, String> {
+        let progress = Arc::new(AtomicU32::new(0));
+        let cancel = Arc::new(AtomicBool::new(false));
+        let total = scene.render.spp;
+        let (thread_progress, thread_cancel, thread_path) =
+            (Arc::clone(&progress), Arc::clone(&cancel), path.clone());
+        let handle = std::thread::Builder::new()
+            .name("skyrender-export".into())
+            .spawn(move || {
+                let result =
+                    export_panorama(&scene, &thread_path, &thread_cancel, &thread_progress);
+                on_done();
+                result
+            })
+            .map_err(|e| format!("cannot start the export: {e}"))?;
+        Ok(Self {
+            path,
+            total,
+            progress,
+            cancel,
+            handle: Some(handle),
+        })
+    }
+
+    /// Completed passes.
+    pub fn done(&self) -> u32 {
+        self.progress.load(Ordering::Relaxed)
+    }
+
+    /// Ask the export to stop (it ends within one row of rendering).
+    pub fn cancel(&self) {
+        self.cancel.store(true, Ordering::Relaxed);
+    }
+
+    /// Whether [`Self::cancel`] was called.
+    pub fn is_cancelled(&self) -> bool {
+        self.cancel.load(Ordering::Relaxed)
+    }
+
+    /// The result once the thread has ended (never blocks): the elapsed time
+    /// or the error. `None` while it runs or after the result was taken.
+    pub fn try_finish(&mut self) -> Option<Result<Duration, String>> {
+        if !self.handle.as_ref()?.is_finished() {
+            return None;
+        }
+        let handle = self.handle.take()?;
+        Some(
+            handle
+                .join()
+                .unwrap_or_else(|_| Err("the export thread panicked".into())),
+        )
+    }
+}
+
+impl Drop for ExportJob {
+    fn drop(&mut self) {
+        // An app closing mid-export stops it; the detached thread then ends
+        // without writing anything.
+        self.cancel();
+    }
+}
+
+/// Tone-map `image` for display: 8-bit sRGB, row-major, 3 bytes a pixel.
+pub fn tonemap_rgb8(image: &output::RgbImage, display: &DisplaySettings) -> Vec<u8> {
+    let scale = display.exposure_ev.exp2();
+    let curve: ToneCurve = display.tone_curve;
+    image
+        .pixels
+        .iter()
+        .flat_map(|&rgb| curve.map(rgb, scale))
+        .collect()
+}
+
+/// Save the displayed frame: `.exr` writes the linear HDR image with the same
+/// header metadata as the CLI (for `scene`, the preview scene); `.png` writes
+/// exactly what is on screen (exposure and tone curve applied).
+pub fn save_view(
+    path: &Path,
+    frame: &Frame,
+    scene: &Scene,
+    display: &DisplaySettings,
+) -> Result<(), String> {
+    match OutputFormat::from_path(path).map_err(|e| e.to_string())? {
+        OutputFormat::Exr => {
+            let metadata = crate::cli::exr_metadata(scene, frame.spp, frame.discarded);
+            output::write_image(path, &frame.image, &metadata, None).map_err(|e| e.to_string())
+        }
+        OutputFormat::Png => {
+            let rgb = tonemap_rgb8(&frame.image, display);
+            write_png_atomic(
+                path,
+                frame.image.width,
+                frame.image.height,
+                &rgb,
+                image::ExtendedColorType::Rgb8,
+            )
+        }
+    }
+}
+
+/// Write 8-bit pixels (`Rgb8` or `Rgba8`) as a PNG, atomically.
+pub fn write_png_atomic(
+    path: &Path,
+    width: u32,
+    height: u32,
+    bytes: &[u8],
+    color: image::ExtendedColorType,
+) -> Result<(), String> {
+    let fail = |e: &dyn std::fmt::Display| format!("cannot write '{}': {e}", path.display());
+    if path.is_dir() {
+        return Err(fail(&"it is a directory"));
+    }
+    let temp = tempfile::NamedTempFile::new_in(parent_dir(path)).map_err(|e| fail(&e))?;
+    {
+        let mut writer = BufWriter::new(temp.as_file());
+        image::codecs::png::PngEncoder::new(&mut writer)
+            .write_image(bytes, width, height, color)
+            .map_err(|e| fail(&e))?;
+        writer.flush().map_err(|e| fail(&e))?;
+    }
+    temp.as_file().sync_all().map_err(|e| fail(&e))?;
+    temp.persist(path).map_err(|e| fail(&e.error))?;
+    Ok(())
+}
+
+/// Write `scene` as TOML, atomically.
+pub fn save_scene(path: &Path, scene: &Scene) -> Result<(), String> {
+    let fail = |e: &dyn std::fmt::Display| format!("cannot save scene '{}': {e}", path.display());
+    if path.is_dir() {
+        return Err(fail(&"it is a directory"));
+    }
+    let mut temp = tempfile::NamedTempFile::new_in(parent_dir(path)).map_err(|e| fail(&e))?;
+    temp.write_all(scene.to_toml().as_bytes())
+        .map_err(|e| fail(&e))?;
+    temp.as_file().sync_all().map_err(|e| fail(&e))?;
+    temp.persist(path).map_err(|e| fail(&e.error))?;
+    Ok(())
+}
+
+/// Read and validate a scene TOML.
+pub fn load_scene(path: &Path) -> Result<Scene, String> {
+    Scene::load(path).map_err(|e| e.to_string())
+}
+
+/// `path` with `extension` appended if it has none (dialogs may return a
+/// bare name).
+pub fn with_default_extension(path: PathBuf, extension: &str) -> PathBuf {
+    if path.extension().is_some() {
+        path
+    } else {
+        path.with_extension(extension)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::output::RgbImage;
+
+    fn tiny_frame() -> Frame {
+        Frame {
+            epoch: 1,
+            image: RgbImage {
+                width: 2,
+                height: 1,
+                pixels: vec![[1.0, 2.0, 3.0], [1e4, 1e4, 1e4]],
+            },
+            spp: 1,
+            elapsed: Duration::ZERO,
+            paths_per_second: 0.0,
+            discarded: 0,
+            finished: true,
+        }
+    }
+
+    #[test]
+    fn export_path_checks() {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(check_export_path(&dir.path().join("a.exr")).is_ok());
+        assert!(check_export_path(&dir.path().join("a.EXR")).is_ok());
+        assert!(check_export_path(&dir.path().join("a.png"))
+            .unwrap_err()
+            .contains(".exr"));
+        assert!(check_export_path(&dir.path().join("a")).is_err());
+        assert!(check_export_path(&dir.path().join("missing/a.exr")).is_err());
+        let as_dir = dir.path().join("d.exr");
+        std::fs::create_dir(&as_dir).unwrap();
+        assert!(check_export_path(&as_dir)
+            .unwrap_err()
+            .contains("directory"));
+    }
+
+    #[test]
+    fn save_view_png_and_exr_and_scene_round_trip() {
+        let dir = tempfile::tempdir().unwrap();
+        let frame = tiny_frame();
+        let scene = Scene::default();
+        let display = DisplaySettings::default();
+        let png = dir.path().join("v.png");
+        save_view(&png, &frame, &scene, &display).unwrap();
+        let decoded = image::open(&png).unwrap().to_rgb8();
+        assert_eq!(decoded.dimensions(), (2, 1));
+        assert_eq!(
+            decoded.get_pixel(1, 0).0.to_vec(),
+            tonemap_rgb8(&frame.image, &display)[3..]
+        );
+        let exr = dir.path().join("v.exr");
+        save_view(&exr, &frame, &scene, &display).unwrap();
+        assert!(std::fs::metadata(&exr).unwrap().len() > 0);
+        assert!(save_view(&dir.path().join("v.tif"), &frame, &scene, &display).is_err());
+        assert!(save_view(&dir.path().join("no/v.png"), &frame, &scene, &display).is_err());
+
+        let toml = dir.path().join("s.toml");
+        let mut custom = Scene::default();
+        custom.sun.elevation_deg = 12.5;
+        save_scene(&toml, &custom).unwrap();
+        assert_eq!(load_scene(&toml).unwrap(), custom);
+        assert!(load_scene(&dir.path().join("none.toml")).is_err());
+        assert!(save_scene(dir.path(), &custom).is_err());
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert_eq!(names.len(), 3, "no temporary files left: {names:?}");
+    }
+
+    #[test]
+    fn default_extension() {
+        assert_eq!(
+            with_default_extension("a".into(), "exr"),
+            PathBuf::from("a.exr")
+        );
+        assert_eq!(
+            with_default_extension("a.png".into(), "exr"),
+            PathBuf::from("a.png")
+        );
+    }
+}

@@ -1,0 +1,705 @@
+//! The preview app's state: the scene being previewed and the display,
+//! render and export settings, as a plain struct with no widgets, so that it
+//! can be tested without a window.
+//!
+//! Every method that changes what the renderer sees marks the state *dirty*;
+//! the app restarts the render service when [`AppState::take_dirty`] says so.
+//! Setters never panic: out-of-range values are clamped and non-finite ones
+//! ignored, so any user input is safe.
+
+use std::path::PathBuf;
+use std::time::Duration;
+
+use crate::atmosphere::{Atmosphere, AtmosphereParams};
+use crate::scene::{CameraKind, Scene};
+
+/// Pixels in the preview at scale 1 (320 × 160 for the equirectangular view).
+pub const PREVIEW_BASE_PIXELS: f64 = 320.0 * 160.0;
+/// Range of the preview resolution scale (a linear factor on width and height).
+pub const PREVIEW_SCALE_RANGE: (f64, f64) = (0.25, 3.0);
+/// Range of the sun elevation slider, degrees.
+pub const SUN_ELEVATION_RANGE: (f64, f64) = (-20.0, 90.0);
+/// Highest observer altitude offered by the app, m.
+pub const MAX_APP_ALTITUDE_M: f64 = 1.0e6;
+/// Altitude of the "ground" quick button: eye height, m.
+pub const GROUND_ALTITUDE_M: f64 = 2.0;
+/// Range of the perspective field of view, degrees.
+pub const PERSPECTIVE_FOV_RANGE: (f64, f64) = (10.0, 150.0);
+/// Range of the fisheye field of view, degrees.
+pub const FISHEYE_FOV_RANGE: (f64, f64) = (60.0, 360.0);
+/// Range of the ozone column slider, Dobson units.
+pub const OZONE_DU_RANGE: (f64, f64) = (0.0, 800.0);
+/// Range of the aerosol amount slider (multiple of Elterman's profile).
+pub const AEROSOL_AMOUNT_RANGE: (f64, f64) = (0.0, 10.0);
+/// Range of the display exposure, EV.
+pub const EXPOSURE_RANGE: (f32, f32) = (-25.0, 10.0);
+/// Largest target sample count of the preview.
+pub const MAX_TARGET_SPP: u32 = 1 << 16;
+/// Largest export sample count.
+pub const MAX_EXPORT_SPP: u32 = 1 << 16;
+/// Export panorama sizes offered (width; the height is half of it).
+pub const EXPORT_WIDTHS: [u32; 5] = [512, 1024, 2048, 4096, 8192];
+
+/// How linear radiance becomes display values.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum ToneCurve {
+    /// Narkowicz's ACES filmic fit ([`crate::output::tonemap_pixel`]), as the
+    /// CLI's PNG output.
+    #[default]
+    Filmic,
+    /// Linear, clipped at display white: shows the true ratios, burns out highlights.
+    Clip,
+}
+
+impl ToneCurve {
+    /// Every curve, in menu order.
+    pub const ALL: [ToneCurve; 2] = [Self::Filmic, Self::Clip];
+
+    /// Name shown in the UI.
+    pub fn label(self) -> &'static str {
+        match self {
+            Self::Filmic => "Filmic (ACES)",
+            Self::Clip => "Linear (clip)",
+        }
+    }
+
+    /// Tone-map one linear Rec.709 pixel (Y in cd/m²) to 8-bit sRGB;
+    /// `exposure_scale` is `2^EV`. Non-finite pixels become black.
+    pub fn map(self, rgb: [f32; 3], exposure_scale: f32) -> [u8; 3] {
+        match self {
+            Self::Filmic => crate::output::tonemap_pixel(rgb, exposure_scale),
+            Self::Clip => {
+                if !rgb.iter().all(|c| c.is_finite()) {
+                    return [0; 3];
+                }
+                rgb.map(|c| {
+                    let v = (c * exposure_scale).clamp(0.0, 1.0);
+                    let encoded = if v <= 0.003_130_8 {
+                        12.92 * v
+                    } else {
+                        1.055 * v.powf(1.0 / 2.4) - 0.055
+                    };
+                    (encoded * 255.0 + 0.5) as u8
+                })
+            }
+        }
+    }
+}
+
+/// How the preview image is shown.
+#[derive(Clone, Debug, PartialEq)]
+pub struct DisplaySettings {
+    /// Exposure in EV (display value = luminance · 2^EV before the tone curve);
+    /// updated from each new frame while `auto_exposure` is on.
+    pub exposure_ev: f32,
+    /// Follow [`crate::output::auto_exposure_ev`] of the latest frame.
+    pub auto_exposure: bool,
+    /// The tone curve.
+    pub tone_curve: ToneCurve,
+    /// Draw a ring around the sun's position.
+    pub mark_sun: bool,
+}
+
+impl Default for DisplaySettings {
+    fn default() -> Self {
+        Self {
+            exposure_ev: -13.0,
+            auto_exposure: true,
+            tone_curve: ToneCurve::Filmic,
+            mark_sun: true,
+        }
+    }
+}
+
+/// How the preview is rendered.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RenderSettings {
+    /// Linear factor on the preview's width and height (1 = 320 × 160 equirect).
+    pub preview_scale: f64,
+    /// Rendering is paused (the accumulated image is kept).
+    pub paused: bool,
+    /// Samples per pixel after which the preview stops refining.
+    pub target_spp: u32,
+}
+
+impl Default for RenderSettings {
+    fn default() -> Self {
+        Self {
+            preview_scale: 1.0,
+            paused: false,
+            target_spp: 1024,
+        }
+    }
+}
+
+/// Size and sample count of an exported panorama.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ExportSettings {
+    /// Width in pixels; the height is half of it (equirectangular, 2:1).
+    pub width: u32,
+    /// Samples per pixel.
+    pub spp: u32,
+}
+
+impl Default for ExportSettings {
+    fn default() -> Self {
+        Self {
+            width: 4096,
+            spp: 64,
+        }
+    }
+}
+
+impl ExportSettings {
+    /// Height in pixels (half the width, at least 1).
+    pub fn height(&self) -> u32 {
+        (self.width / 2).max(1)
+    }
+}
+
+/// Where the HDR panorama export stands.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub enum ExportStatus {
+    /// No export has been started.
+    #[default]
+    Idle,
+    /// Rendering `done` of `total` passes into `path`.
+    Running {
+        /// Target file.
+        path: PathBuf,
+        /// Completed passes.
+        done: u32,
+        /// Passes in all (the export spp).
+        total: u32,
+    },
+    /// The file was written.
+    Finished {
+        /// The file written.
+        path: PathBuf,
+        /// Wall-clock time of the export.
+        elapsed: Duration,
+    },
+    /// Cancelled by the user; nothing was written.
+    Cancelled,
+    /// The export failed; nothing was written.
+    Failed(String),
+}
+
+impl ExportStatus {
+    /// An export is in progress.
+    pub fn is_running(&self) -> bool {
+        matches!(self, Self::Running { .. })
+    }
+}
+
+/// The app's state, independent of any widget.
+#[derive(Clone, Debug)]
+pub struct AppState {
+    scene: Scene,
+    /// How the image is shown (changing it needs no new render).
+    pub display: DisplaySettings,
+    render: RenderSettings,
+    /// Size and samples of the HDR export.
+    pub export: ExportSettings,
+    /// Where the export stands.
+    pub export_status: ExportStatus,
+    /// The latest error to show the user (cleared by the user or on success).
+    pub last_error: Option<String>,
+    /// The latest informational message (e.g. "saved …").
+    pub message: Option<String>,
+    /// Ozone column of the model's own profile, DU (what `ozone_du = None` means).
+    profile_ozone_du: f64,
+    dirty: bool,
+}
+
+impl Default for AppState {
+    fn default() -> Self {
+        Self::new(Scene::preset("midday").unwrap_or_default())
+    }
+}
+
+impl AppState {
+    /// State previewing `scene`; marked dirty so the first frame renders it.
+    pub fn new(scene: Scene) -> Self {
+        let mut state = Self {
+            scene: Scene::default(),
+            display: DisplaySettings::default(),
+            render: RenderSettings::default(),
+            export: ExportSettings::default(),
+            export_status: ExportStatus::Idle,
+            last_error: None,
+            message: None,
+            profile_ozone_du: 0.0,
+            dirty: true,
+        };
+        state.set_scene(scene);
+        state
+    }
+
+    /// The scene as the user set it up (its own render size and spp are what
+    /// a saved TOML keeps; the preview uses [`Self::preview_scene`]).
+    pub fn scene(&self) -> &Scene {
+        &self.scene
+    }
+
+    /// The render settings.
+    pub fn render(&self) -> &RenderSettings {
+        &self.render
+    }
+
+    /// Whether the scene changed since the last [`Self::take_dirty`].
+    pub fn is_dirty(&self) -> bool {
+        self.dirty
+    }
+
+    /// Report and clear the dirty flag.
+    pub fn take_dirty(&mut self) -> bool {
+        std::mem::take(&mut self.dirty)
+    }
+
+    /// Mark the scene as changed (forces a restart of the preview).
+    pub fn mark_dirty(&mut self) {
+        self.dirty = true;
+    }
+
+    /// Replace the whole scene (a preset or a loaded file). A scene that
+    /// fails validation is rejected with its error and the old one kept.
+    pub fn set_scene(&mut self, scene: Scene) -> bool {
+        if let Err(e) = scene.validate() {
+            self.last_error = Some(e.to_string());
+            return false;
+        }
+        let mut params = scene.atmosphere.clone();
+        params.ozone = true;
+        params.ozone_du = None;
+        self.profile_ozone_du = Atmosphere::new(params).ozone_column_du();
+        self.scene = scene;
+        self.dirty = true;
+        true
+    }
+
+    /// Load a built-in preset by name.
+    pub fn load_preset(&mut self, name: &str) -> bool {
+        match Scene::preset(name) {
+            Ok(scene) => {
+                let ok = self.set_scene(scene);
+                if ok {
+                    self.message = Some(format!("preset '{name}'"));
+                }
+                ok
+            }
+            Err(e) => {
+                self.last_error = Some(e.to_string());
+                false
+            }
+        }
+    }
+
+    /// Assign `value` to the field `f` selects if it is finite and differs;
+    /// marks the state dirty when it changes.
+    fn update(&mut self, value: f64, f: impl FnOnce(&mut Scene) -> &mut f64) {
+        if !value.is_finite() {
+            return;
+        }
+        let field = f(&mut self.scene);
+        if *field != value {
+            *field = value;
+            self.dirty = true;
+        }
+    }
+
+    /// Sun elevation, degrees, clamped to [`SUN_ELEVATION_RANGE`].
+    pub fn set_sun_elevation(&mut self, deg: f64) {
+        let (lo, hi) = SUN_ELEVATION_RANGE;
+        self.update(deg.clamp(lo, hi), |s| &mut s.sun.elevation_deg);
+    }
+
+    /// Sun azimuth, degrees clockwise from north, wrapped to 0–360.
+    pub fn set_sun_azimuth(&mut self, deg: f64) {
+        let wrapped = if deg == 360.0 {
+            deg
+        } else {
+            deg.rem_euclid(360.0)
+        };
+        self.update(wrapped, |s| &mut s.sun.azimuth_deg);
+    }
+
+    /// Observer altitude, m, clamped to 0–[`MAX_APP_ALTITUDE_M`].
+    pub fn set_altitude_m(&mut self, m: f64) {
+        self.update(m.clamp(0.0, MAX_APP_ALTITUDE_M), |s| {
+            &mut s.observer.altitude_m
+        });
+    }
+
+    /// Switch the camera projection. The field of view is brought into the
+    /// new mode's range (a fisheye starts as a hemisphere, 180°).
+    pub fn set_camera_kind(&mut self, kind: CameraKind) {
+        if self.scene.camera.kind == kind {
+            return;
+        }
+        let camera = &mut self.scene.camera;
+        let previous = camera.kind;
+        camera.kind = kind;
+        match kind {
+            CameraKind::Fisheye => camera.fov_deg = 180.0,
+            CameraKind::Perspective => {
+                let (lo, hi) = PERSPECTIVE_FOV_RANGE;
+                if previous == CameraKind::Fisheye || !(lo..=hi).contains(&camera.fov_deg) {
+                    camera.fov_deg = 90.0;
+                }
+            }
+            CameraKind::Equirect => {}
+        }
+        self.dirty = true;
+    }
+
+    /// Field of view, degrees, clamped to the current mode's range (the
+    /// equirectangular map has none and ignores it).
+    pub fn set_fov(&mut self, deg: f64) {
+        let (lo, hi) = match self.scene.camera.kind {
+            CameraKind::Fisheye => FISHEYE_FOV_RANGE,
+            CameraKind::Perspective | CameraKind::Equirect => PERSPECTIVE_FOV_RANGE,
+        };
+        self.update(deg.clamp(lo, hi), |s| &mut s.camera.fov_deg);
+    }
+
+    /// View direction: yaw (degrees clockwise from north, wrapped to
+    /// −180–180) and pitch (clamped to ±90).
+    pub fn set_view(&mut self, yaw_deg: f64, pitch_deg: f64) {
+        let yaw = (yaw_deg + 180.0).rem_euclid(360.0) - 180.0;
+        self.update(yaw, |s| &mut s.camera.yaw_deg);
+        self.update(pitch_deg.clamp(-90.0, 90.0), |s| &mut s.camera.pitch_deg);
+    }
+
+    /// Turn the view by the given angles, degrees.
+    pub fn rotate_view(&mut self, d_yaw_deg: f64, d_pitch_deg: f64) {
+        let camera = &self.scene.camera;
+        self.set_view(camera.yaw_deg + d_yaw_deg, camera.pitch_deg + d_pitch_deg);
+    }
+
+    /// Aerosols on or off.
+    pub fn set_aerosols(&mut self, on: bool) {
+        if self.scene.atmosphere.aerosols != on {
+            self.scene.atmosphere.aerosols = on;
+            self.dirty = true;
+        }
+    }
+
+    /// Aerosol amount (multiple of the standard profile), clamped to [`AEROSOL_AMOUNT_RANGE`].
+    pub fn set_aerosol_amount(&mut self, amount: f64) {
+        let (lo, hi) = AEROSOL_AMOUNT_RANGE;
+        self.update(amount.clamp(lo, hi), |s| &mut s.atmosphere.aerosol_amount);
+    }
+
+    /// Ozone on or off.
+    pub fn set_ozone(&mut self, on: bool) {
+        if self.scene.atmosphere.ozone != on {
+            self.scene.atmosphere.ozone = on;
+            self.dirty = true;
+        }
+    }
+
+    /// Ozone column in DU (clamped to [`OZONE_DU_RANGE`]), or `None` for the
+    /// model profile's own column.
+    pub fn set_ozone_du(&mut self, du: Option<f64>) {
+        let (lo, hi) = OZONE_DU_RANGE;
+        let du = match du {
+            Some(v) if !v.is_finite() => return,
+            other => other.map(|v| v.clamp(lo, hi)),
+        };
+        if self.scene.atmosphere.ozone_du != du {
+            self.scene.atmosphere.ozone_du = du;
+            self.dirty = true;
+        }
+    }
+
+    /// The ozone column the renderer uses, DU (the profile's own when unset).
+    pub fn ozone_column_du(&self) -> f64 {
+        self.scene
+            .atmosphere
+            .ozone_du
+            .unwrap_or(self.profile_ozone_du)
+    }
+
+    /// Lambertian ground albedo, clamped to 0–1.
+    pub fn set_ground_albedo(&mut self, albedo: f64) {
+        self.update(albedo.clamp(0.0, 1.0), |s| &mut s.atmosphere.ground_albedo);
+    }
+
+    /// Preview resolution scale, clamped to [`PREVIEW_SCALE_RANGE`].
+    pub fn set_preview_scale(&mut self, scale: f64) {
+        if !scale.is_finite() {
+            return;
+        }
+        let (lo, hi) = PREVIEW_SCALE_RANGE;
+        let scale = scale.clamp(lo, hi);
+        if self.render.preview_scale != scale {
+            self.render.preview_scale = scale;
+            self.dirty = true;
+        }
+    }
+
+    /// Samples per pixel after which the preview stops, 1–[`MAX_TARGET_SPP`].
+    pub fn set_target_spp(&mut self, spp: u32) {
+        let spp = spp.clamp(1, MAX_TARGET_SPP);
+        if self.render.target_spp != spp {
+            self.render.target_spp = spp;
+            self.dirty = true;
+        }
+    }
+
+    /// Pause or resume rendering (keeps the accumulated image; not a scene change).
+    pub fn set_paused(&mut self, paused: bool) {
+        self.render.paused = paused;
+    }
+
+    /// Width and height of the preview for the current camera mode and scale:
+    /// 2:1 for the equirectangular map, square for the fisheye, the scene's
+    /// own aspect ratio for the perspective camera; about
+    /// [`PREVIEW_BASE_PIXELS`] × scale² pixels in each case.
+    pub fn preview_size(&self) -> (u32, u32) {
+        let pixels = PREVIEW_BASE_PIXELS * self.render.preview_scale * self.render.preview_scale;
+        let aspect = match self.scene.camera.kind {
+            CameraKind::Equirect => 2.0,
+            CameraKind::Fisheye => 1.0,
+            CameraKind::Perspective => {
+                let r = &self.scene.render;
+                (f64::from(r.width) / f64::from(r.height)).clamp(0.5, 3.0)
+            }
+        };
+        let width = (pixels * aspect).sqrt().round().max(1.0);
+        let height = (width / aspect).round().max(1.0);
+        (width as u32, height as u32)
+    }
+
+    /// The scene the preview renders: the user's scene at the preview size,
+    /// with the target sample count.
+    pub fn preview_scene(&self) -> Scene {
+        let mut scene = self.scene.clone();
+        let (width, height) = self.preview_size();
+        scene.render.width = width;
+        scene.render.height = height;
+        scene.render.spp = self.render.target_spp;
+        scene
+    }
+
+    /// The scene an HDR panorama export renders: the user's scene with an
+    /// equirectangular camera at the export size and sample count — what
+    /// `skyrender render --camera equirect --width W --height H --spp N`
+    /// renders for it.
+    pub fn export_scene(&self) -> Scene {
+        let mut scene = self.scene.clone();
+        scene.camera.kind = CameraKind::Equirect;
+        scene.render.width = self.export.width.clamp(2, 65_536);
+        scene.render.height = self.export.height();
+        scene.render.spp = self.export.spp.clamp(1, MAX_EXPORT_SPP);
+        scene
+    }
+
+    /// Set the exported panorama's width (height = width / 2), 2–65536.
+    pub fn set_export_width(&mut self, width: u32) {
+        self.export.width = width.clamp(2, 65_536);
+    }
+
+    /// Set the export sample count, 1–[`MAX_EXPORT_SPP`].
+    pub fn set_export_spp(&mut self, spp: u32) {
+        self.export.spp = spp.clamp(1, MAX_EXPORT_SPP);
+    }
+
+    /// The parameters of the atmosphere as set (for display).
+    pub fn atmosphere(&self) -> &AtmosphereParams {
+        &self.scene.atmosphere
+    }
+}
+
+/// `log10(altitude + 1)`: the altitude slider's position for an altitude in m.
+pub fn altitude_to_slider(altitude_m: f64) -> f64 {
+    (altitude_m.max(0.0) + 1.0).log10()
+}
+
+/// Inverse of [`altitude_to_slider`], m (rounded to 3 significant digits
+/// above 100 m so that dragged values stay readable).
+pub fn slider_to_altitude(position: f64) -> f64 {
+    let m = (10f64.powf(position) - 1.0).max(0.0);
+    if m < 100.0 {
+        (m * 10.0).round() / 10.0
+    } else {
+        let magnitude = 10f64.powf(m.log10().floor() - 2.0);
+        (m / magnitude).round() * magnitude
+    }
+}
+
+/// An altitude for display: "2 m", "10.0 km", "400 km".
+pub fn format_altitude(m: f64) -> String {
+    if m < 1_000.0 {
+        format!("{m:.0} m")
+    } else if m < 100_000.0 {
+        format!("{:.1} km", m / 1_000.0)
+    } else {
+        format!("{:.0} km", m / 1_000.0)
+    }
+}
+
+/// Parse an altitude typed by the user: a number in m, or with a unit
+/// "m" / "km" ("10 km", "400km", "2500 m").
+pub fn parse_altitude(text: &str) -> Option<f64> {
+    let t = text.trim().to_ascii_lowercase();
+    let (number, factor) = if let Some(n) = t.strip_suffix("km") {
+        (n, 1_000.0)
+    } else if let Some(n) = t.strip_suffix('m') {
+        (n, 1.0)
+    } else {
+        (t.as_str(), 1.0)
+    };
+    let value = number.trim().parse::<f64>().ok()? * factor;
+    value.is_finite().then_some(value)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn setters_mark_dirty_only_on_change() {
+        let mut state = AppState::default();
+        assert!(state.take_dirty(), "a new state renders its scene");
+        assert!(!state.take_dirty());
+        state.set_sun_elevation(state.scene().sun.elevation_deg);
+        assert!(!state.is_dirty(), "same value: no restart");
+        state.set_sun_elevation(10.0);
+        assert!(state.take_dirty());
+        assert_eq!(state.scene().sun.elevation_deg, 10.0);
+        state.set_aerosols(false);
+        assert!(state.take_dirty());
+        state.set_ozone(false);
+        assert!(state.take_dirty());
+        state.set_camera_kind(CameraKind::Fisheye);
+        assert!(state.take_dirty());
+        state.set_paused(true);
+        assert!(!state.is_dirty(), "pausing keeps the accumulation");
+        state.display.exposure_ev = 3.0;
+        assert!(!state.is_dirty(), "display settings need no new render");
+    }
+
+    #[test]
+    fn user_input_is_clamped_and_non_finite_ignored() {
+        let mut state = AppState::default();
+        state.set_sun_elevation(-70.0);
+        assert_eq!(state.scene().sun.elevation_deg, -20.0);
+        state.set_sun_elevation(f64::NAN);
+        assert_eq!(state.scene().sun.elevation_deg, -20.0);
+        state.set_sun_azimuth(-90.0);
+        assert_eq!(state.scene().sun.azimuth_deg, 270.0);
+        state.set_altitude_m(-1.0);
+        assert_eq!(state.scene().observer.altitude_m, 0.0);
+        state.set_altitude_m(f64::INFINITY);
+        assert_eq!(state.scene().observer.altitude_m, 0.0);
+        state.set_altitude_m(5e9);
+        assert_eq!(state.scene().observer.altitude_m, MAX_APP_ALTITUDE_M);
+        state.set_ground_albedo(2.0);
+        assert_eq!(state.scene().atmosphere.ground_albedo, 1.0);
+        state.set_ozone_du(Some(f64::NAN));
+        assert_eq!(state.scene().atmosphere.ozone_du, None);
+        state.set_ozone_du(Some(5_000.0));
+        assert_eq!(state.scene().atmosphere.ozone_du, Some(OZONE_DU_RANGE.1));
+        state.set_target_spp(0);
+        assert_eq!(state.render().target_spp, 1);
+        state.set_preview_scale(f64::NAN);
+        assert_eq!(state.render().preview_scale, 1.0);
+        state.set_camera_kind(CameraKind::Perspective);
+        state.set_view(200.0, 120.0);
+        assert_eq!(state.scene().camera.yaw_deg, -160.0);
+        assert_eq!(state.scene().camera.pitch_deg, 90.0);
+        state.set_fov(500.0);
+        assert_eq!(state.scene().camera.fov_deg, PERSPECTIVE_FOV_RANGE.1);
+        state.preview_scene().validate().unwrap();
+        state.export_scene().validate().unwrap();
+    }
+
+    #[test]
+    fn camera_switch_keeps_a_valid_fov() {
+        let mut state = AppState::default();
+        state.set_camera_kind(CameraKind::Fisheye);
+        assert_eq!(state.scene().camera.fov_deg, 180.0);
+        state.preview_scene().validate().unwrap();
+        state.set_camera_kind(CameraKind::Perspective);
+        assert_eq!(state.scene().camera.fov_deg, 90.0);
+        state.preview_scene().validate().unwrap();
+    }
+
+    #[test]
+    fn preview_and_export_scenes() {
+        let mut state = AppState::default();
+        assert_eq!(state.preview_size(), (320, 160));
+        state.set_camera_kind(CameraKind::Fisheye);
+        let (w, h) = state.preview_size();
+        assert_eq!(w, h);
+        assert!((f64::from(w * h) / PREVIEW_BASE_PIXELS - 1.0).abs() < 0.02);
+        state.set_preview_scale(0.5);
+        let scene = state.preview_scene();
+        assert_eq!((scene.render.width, scene.render.height), (113, 113));
+        assert_eq!(scene.render.spp, state.render().target_spp);
+        state.set_export_width(1024);
+        state.set_export_spp(3);
+        let export = state.export_scene();
+        assert_eq!(export.camera.kind, CameraKind::Equirect);
+        assert_eq!(
+            (export.render.width, export.render.height, export.render.spp),
+            (1024, 512, 3)
+        );
+        assert_eq!(export.sun, state.scene().sun);
+    }
+
+    #[test]
+    fn presets_and_invalid_scenes() {
+        let mut state = AppState::default();
+        for (name, _) in crate::scene::PRESETS {
+            assert!(state.load_preset(name), "{name}");
+            assert!(state.take_dirty());
+        }
+        assert_eq!(state.scene().observer.altitude_m, 10_000.0);
+        assert!(!state.load_preset("nowhere"));
+        assert!(state.last_error.as_deref().unwrap_or("").contains("midday"));
+        let mut bad = Scene::default();
+        bad.render.spp = 0;
+        assert!(!state.set_scene(bad));
+        assert_eq!(state.scene().observer.altitude_m, 10_000.0);
+    }
+
+    #[test]
+    fn ozone_column_defaults_to_the_profile() {
+        let mut state = AppState::default();
+        let own = state.ozone_column_du();
+        assert!((250.0..450.0).contains(&own), "{own}");
+        state.set_ozone_du(Some(300.0));
+        assert_eq!(state.ozone_column_du(), 300.0);
+    }
+
+    #[test]
+    fn altitude_slider_mapping() {
+        for m in [0.0, 2.0, 10_000.0, 400_000.0, 1.0e6] {
+            let back = slider_to_altitude(altitude_to_slider(m));
+            assert!((back - m).abs() <= 1e-6 * m.max(1.0), "{m} -> {back}");
+        }
+        assert_eq!(slider_to_altitude(altitude_to_slider(12_345.0)), 12_300.0);
+        assert_eq!(format_altitude(2.0), "2 m");
+        assert_eq!(format_altitude(10_000.0), "10.0 km");
+        assert_eq!(format_altitude(400_000.0), "400 km");
+        assert_eq!(parse_altitude("10 km"), Some(10_000.0));
+        assert_eq!(parse_altitude(" 2500m"), Some(2_500.0));
+        assert_eq!(parse_altitude("12"), Some(12.0));
+        assert_eq!(parse_altitude("high"), None);
+        assert_eq!(parse_altitude("inf"), None);
+    }
+
+    #[test]
+    fn tone_curves() {
+        for curve in ToneCurve::ALL {
+            assert_eq!(curve.map([f32::NAN, 1.0, 1.0], 1.0), [0; 3]);
+            assert_eq!(curve.map([0.0; 3], 1.0), [0; 3]);
+            let bright = curve.map([100.0; 3], 1.0);
+            assert!(bright.iter().all(|&c| c >= 250), "{curve:?} {bright:?}");
+        }
+        assert_eq!(ToneCurve::Clip.map([0.5; 3], 1.0), [188; 3]);
+    }
+}

@@ -1,0 +1,1166 @@
+//! The preview app's window: controls on the left, the progressively
+//! path-traced sky in the middle, a status bar at the bottom.
+//!
+//! [`SkyApp::show`] draws everything into a [`egui::Ui`]; `eframe` calls it
+//! through [`eframe::App::ui`] and the UI tests through `egui_kittest`. The
+//! UI thread never waits: rendering runs on the [`RenderService`]'s thread,
+//! exports, saves, loads and file dialogs on threads of their own that
+//! report back through a channel.
+
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{channel, Receiver, Sender};
+use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
+
+use egui::{Color32, RichText, Sense, Slider};
+
+use super::io::{self, ExportJob};
+use super::state::{
+    altitude_to_slider, format_altitude, parse_altitude, slider_to_altitude, AppState,
+    DisplaySettings, ExportStatus, ToneCurve, AEROSOL_AMOUNT_RANGE, EXPORT_WIDTHS, EXPOSURE_RANGE,
+    FISHEYE_FOV_RANGE, GROUND_ALTITUDE_M, MAX_APP_ALTITUDE_M, MAX_EXPORT_SPP, MAX_TARGET_SPP,
+    OZONE_DU_RANGE, PERSPECTIVE_FOV_RANGE, PREVIEW_SCALE_RANGE, SUN_ELEVATION_RANGE,
+};
+use crate::render::service::{Frame, RenderService};
+use crate::render::{direction_from_az_el, Camera};
+use crate::scene::{CameraKind, Scene, PRESETS};
+
+/// While the latest restart has not produced its first frame yet, further
+/// scene changes wait this long before restarting again, so that dragging a
+/// slider shows a new low-sample image at the rate passes complete instead
+/// of cancelling every pass before it finishes.
+const RESTART_COALESCE: Duration = Duration::from_millis(150);
+/// How often the UI polls the render service while it renders.
+const RENDER_POLL: Duration = Duration::from_millis(15);
+/// How often the UI refreshes while an export or a file task runs.
+const TASK_POLL: Duration = Duration::from_millis(100);
+/// Arrow-key step of the view direction, degrees (shift: a fifth of it).
+const ARROW_STEP_DEG: f64 = 5.0;
+
+/// A file dialog the app can open.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Dialog {
+    Export,
+    SaveView,
+    SaveScene,
+    LoadScene,
+}
+
+/// Results that background threads send to the UI.
+enum TaskResult {
+    /// A dialog closed with this path (`None`: cancelled).
+    Picked(Dialog, Option<PathBuf>),
+    /// A scene file was read.
+    SceneLoaded(PathBuf, Result<Scene, String>),
+    /// A file (view, scene, screenshot) was written, or not.
+    Saved(&'static str, PathBuf, Result<(), String>),
+}
+
+/// Time from a scene change to its first frame on screen.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct LatencyStats {
+    /// The latest measurement.
+    pub last: Option<Duration>,
+    /// Number of measurements.
+    pub count: u32,
+    /// Sum of all measurements.
+    pub total: Duration,
+    /// Largest measurement.
+    pub max: Duration,
+}
+
+impl LatencyStats {
+    fn record(&mut self, latency: Duration) {
+        self.last = Some(latency);
+        self.count += 1;
+        self.total += latency;
+        self.max = self.max.max(latency);
+    }
+
+    /// Mean of all measurements.
+    pub fn mean(&self) -> Option<Duration> {
+        (self.count > 0).then(|| self.total / self.count)
+    }
+}
+
+/// `--screenshot`: save the window after a delay and close it.
+struct ScreenshotPlan {
+    path: PathBuf,
+    after: Duration,
+    started: Option<Instant>,
+    requested: bool,
+    result: Arc<Mutex<Option<Result<(), String>>>>,
+}
+
+/// The preview app.
+pub struct SkyApp {
+    state: AppState,
+    service: RenderService,
+    /// The epoch of the latest `start`, and the scene it renders.
+    started_epoch: u64,
+    started_scene: Scene,
+    /// When the current epoch started, until its first frame is shown.
+    pending_since: Option<Instant>,
+    latency: LatencyStats,
+    applied_paused: bool,
+    /// The frame on screen and the preview scene it was rendered from.
+    frame: Option<Arc<Frame>>,
+    frame_scene: Scene,
+    texture: Option<egui::TextureHandle>,
+    /// Display settings the texture was made with; `None` forces an upload.
+    uploaded: Option<DisplaySettings>,
+    export_job: Option<ExportJob>,
+    tasks_tx: Sender<TaskResult>,
+    tasks_rx: Receiver<TaskResult>,
+    dialog_open: bool,
+    tasks_running: usize,
+    ctx: Option<egui::Context>,
+    screenshot: Option<ScreenshotPlan>,
+}
+
+impl SkyApp {
+    /// An app previewing `scene`; rendering starts with the first frame drawn.
+    pub fn new(scene: Scene) -> Self {
+        Self::with_state(AppState::new(scene))
+    }
+
+    /// An app with the given state (e.g. custom render settings for tests).
+    pub fn with_state(mut state: AppState) -> Self {
+        state.mark_dirty();
+        let (tasks_tx, tasks_rx) = channel();
+        let started_scene = state.preview_scene();
+        Self {
+            state,
+            service: RenderService::new(),
+            started_epoch: 0,
+            frame_scene: started_scene.clone(),
+            started_scene,
+            pending_since: None,
+            latency: LatencyStats::default(),
+            applied_paused: false,
+            frame: None,
+            texture: None,
+            uploaded: None,
+            export_job: None,
+            tasks_tx,
+            tasks_rx,
+            dialog_open: false,
+            tasks_running: 0,
+            ctx: None,
+            screenshot: None,
+        }
+    }
+
+    /// Take a screenshot of the window into `path` (PNG) `after` the first
+    /// frame, then close the window; `result` receives the outcome.
+    fn with_screenshot(
+        mut self,
+        path: PathBuf,
+        after: Duration,
+        result: Arc<Mutex<Option<Result<(), String>>>>,
+    ) -> Self {
+        self.screenshot = Some(ScreenshotPlan {
+            path,
+            after,
+            started: None,
+            requested: false,
+            result,
+        });
+        self
+    }
+
+    /// The app state.
+    pub fn state(&self) -> &AppState {
+        &self.state
+    }
+
+    /// The app state, to change settings as the controls do.
+    pub fn state_mut(&mut self) -> &mut AppState {
+        &mut self.state
+    }
+
+    /// The render service's current epoch (it grows on every restart).
+    pub fn service_epoch(&self) -> u64 {
+        self.service.epoch()
+    }
+
+    /// The frame on screen.
+    pub fn frame(&self) -> Option<&Arc<Frame>> {
+        self.frame.as_ref()
+    }
+
+    /// Scene-change-to-first-frame latencies measured so far.
+    pub fn latency(&self) -> LatencyStats {
+        self.latency
+    }
+
+    /// An export, save, load or dialog is still running.
+    pub fn busy(&self) -> bool {
+        self.export_job.is_some() || self.tasks_running > 0 || self.dialog_open
+    }
+
+    fn wake(&self) -> impl Fn() + Send + 'static {
+        let ctx = self.ctx.clone();
+        move || {
+            if let Some(ctx) = &ctx {
+                ctx.request_repaint();
+            }
+        }
+    }
+
+    /// Run `work` on a thread of its own; its result comes back through the
+    /// task channel.
+    fn spawn_task(&mut self, work: impl FnOnce() -> TaskResult + Send + 'static) {
+        let tx = self.tasks_tx.clone();
+        let wake = self.wake();
+        let spawned = std::thread::Builder::new()
+            .name("skyrender-task".into())
+            .spawn(move || {
+                // The receiver lives as long as the app; a closed app drops the result.
+                let _ = tx.send(work());
+                wake();
+            });
+        match spawned {
+            Ok(_) => self.tasks_running += 1,
+            Err(e) => self.state.last_error = Some(format!("cannot start a background task: {e}")),
+        }
+    }
+
+    /// Open a file dialog off the UI thread; the path comes back as a task result.
+    fn open_dialog(&mut self, dialog: Dialog) {
+        if self.dialog_open {
+            return;
+        }
+        self.dialog_open = true;
+        self.spawn_task(move || {
+            let picked = match dialog {
+                Dialog::Export => rfd::FileDialog::new()
+                    .set_title("Export HDR panorama")
+                    .add_filter("OpenEXR", &["exr"])
+                    .set_file_name("sky.exr")
+                    .save_file()
+                    .map(|p| io::with_default_extension(p, "exr")),
+                Dialog::SaveView => rfd::FileDialog::new()
+                    .set_title("Save view")
+                    .add_filter("PNG (as shown)", &["png"])
+                    .add_filter("OpenEXR (linear HDR)", &["exr"])
+                    .set_file_name("view.png")
+                    .save_file()
+                    .map(|p| io::with_default_extension(p, "png")),
+                Dialog::SaveScene => rfd::FileDialog::new()
+                    .set_title("Save scene")
+                    .add_filter("Scene (TOML)", &["toml"])
+                    .set_file_name("scene.toml")
+                    .save_file()
+                    .map(|p| io::with_default_extension(p, "toml")),
+                Dialog::LoadScene => rfd::FileDialog::new()
+                    .set_title("Load scene")
+                    .add_filter("Scene (TOML)", &["toml"])
+                    .pick_file(),
+            };
+            TaskResult::Picked(dialog, picked)
+        });
+    }
+
+    /// Export the HDR panorama of the current scene to `path` in the
+    /// background (what the export dialog leads to). Errors, including an
+    /// unusable path, end up in the state's `export_status` and `last_error`.
+    pub fn start_export(&mut self, path: PathBuf) {
+        if self.export_job.is_some() {
+            self.state.last_error = Some("an export is already running".into());
+            return;
+        }
+        let scene = self.state.export_scene();
+        let total = scene.render.spp;
+        match ExportJob::start(scene, path.clone(), self.wake()) {
+            Ok(job) => {
+                self.export_job = Some(job);
+                self.state.export_status = ExportStatus::Running {
+                    path,
+                    done: 0,
+                    total,
+                };
+            }
+            Err(e) => self.fail_export(e),
+        }
+    }
+
+    /// Stop a running export; nothing is written.
+    pub fn cancel_export(&self) {
+        if let Some(job) = &self.export_job {
+            job.cancel();
+        }
+    }
+
+    fn fail_export(&mut self, message: String) {
+        self.state.last_error = Some(message.clone());
+        self.state.export_status = ExportStatus::Failed(message);
+    }
+
+    /// Save the frame on screen to `path` (`.png` as shown, `.exr` linear) in the background.
+    pub fn save_view_to(&mut self, path: PathBuf) {
+        let Some(frame) = self.frame.clone() else {
+            self.state.last_error = Some("nothing to save yet: no frame has been rendered".into());
+            return;
+        };
+        let scene = self.frame_scene.clone();
+        let display = self.state.display.clone();
+        self.spawn_task(move || {
+            let result = io::save_view(&path, &frame, &scene, &display);
+            TaskResult::Saved("view", path, result)
+        });
+    }
+
+    /// Save the scene as TOML to `path` in the background.
+    pub fn save_scene_to(&mut self, path: PathBuf) {
+        let scene = self.state.scene().clone();
+        self.spawn_task(move || {
+            let result = io::save_scene(&path, &scene);
+            TaskResult::Saved("scene", path, result)
+        });
+    }
+
+    /// Load a scene TOML from `path` in the background; it replaces the
+    /// current scene if it is valid.
+    pub fn load_scene_from(&mut self, path: PathBuf) {
+        self.spawn_task(move || {
+            let result = io::load_scene(&path);
+            TaskResult::SceneLoaded(path, result)
+        });
+    }
+
+    /// Handle what background threads reported.
+    fn poll_tasks(&mut self) {
+        while let Ok(result) = self.tasks_rx.try_recv() {
+            self.tasks_running = self.tasks_running.saturating_sub(1);
+            match result {
+                TaskResult::Picked(dialog, path) => {
+                    self.dialog_open = false;
+                    let Some(path) = path else { continue };
+                    match dialog {
+                        Dialog::Export => self.start_export(path),
+                        Dialog::SaveView => self.save_view_to(path),
+                        Dialog::SaveScene => self.save_scene_to(path),
+                        Dialog::LoadScene => self.load_scene_from(path),
+                    }
+                }
+                TaskResult::SceneLoaded(path, Ok(scene)) => {
+                    if self.state.set_scene(scene) {
+                        self.state.message = Some(format!("loaded '{}'", path.display()));
+                    }
+                }
+                TaskResult::SceneLoaded(_, Err(e)) | TaskResult::Saved(_, _, Err(e)) => {
+                    self.state.last_error = Some(e);
+                }
+                TaskResult::Saved(what, path, Ok(())) => {
+                    self.state.message = Some(format!("saved {what} to '{}'", path.display()));
+                    if what == "screenshot" {
+                        if let Some(ctx) = &self.ctx {
+                            ctx.send_viewport_cmd(egui::ViewportCommand::Close);
+                        }
+                    }
+                }
+            }
+        }
+        if let Some(job) = &mut self.export_job {
+            let done = job.done();
+            if let ExportStatus::Running { done: shown, .. } = &mut self.state.export_status {
+                *shown = done;
+            }
+            if let Some(result) = job.try_finish() {
+                let cancelled = job.is_cancelled();
+                let path = job.path.clone();
+                self.export_job = None;
+                match result {
+                    Ok(elapsed) => {
+                        self.state.message = Some(format!("exported '{}'", path.display()));
+                        self.state.export_status = ExportStatus::Finished { path, elapsed };
+                    }
+                    Err(_) if cancelled => self.state.export_status = ExportStatus::Cancelled,
+                    Err(e) => self.fail_export(e),
+                }
+            }
+        }
+    }
+
+    /// Restart the render service if the scene changed, apply pause/resume,
+    /// and take a new frame if one was published.
+    fn poll_render(&mut self, ctx: &egui::Context) {
+        let now = Instant::now();
+        let paused = self.state.render().paused;
+        if paused != self.applied_paused {
+            self.service.set_paused(paused);
+            self.applied_paused = paused;
+        }
+        let waiting = self
+            .pending_since
+            .is_some_and(|since| now.duration_since(since) < RESTART_COALESCE);
+        if self.state.is_dirty() && (!waiting || paused || self.frame.is_none()) {
+            self.state.take_dirty();
+            let scene = self.state.preview_scene();
+            self.started_epoch = self.service.start(scene.clone());
+            self.started_scene = scene;
+            self.pending_since = Some(now);
+        }
+        if let Some(error) = self.service.error() {
+            self.state.last_error = Some(error);
+        }
+        if let Some(frame) = self.service.latest() {
+            let is_new = frame.epoch == self.started_epoch
+                && self
+                    .frame
+                    .as_ref()
+                    .is_none_or(|f| f.epoch != frame.epoch || f.spp != frame.spp);
+            if is_new {
+                if let Some(since) = self.pending_since.take() {
+                    self.latency.record(now.duration_since(since));
+                }
+                if self.state.display.auto_exposure {
+                    let (lo, hi) = EXPOSURE_RANGE;
+                    self.state.display.exposure_ev =
+                        crate::output::auto_exposure_ev(&frame.image).clamp(lo, hi);
+                }
+                self.frame = Some(frame);
+                self.frame_scene = self.started_scene.clone();
+                self.uploaded = None;
+            }
+        }
+        if let Some(frame) = &self.frame {
+            if self.uploaded.as_ref() != Some(&self.state.display) {
+                let bytes = io::tonemap_rgb8(&frame.image, &self.state.display);
+                let size = [frame.image.width as usize, frame.image.height as usize];
+                let image = egui::ColorImage::from_rgb(size, &bytes);
+                match &mut self.texture {
+                    Some(texture) => texture.set(image, egui::TextureOptions::LINEAR),
+                    None => {
+                        self.texture = Some(ctx.load_texture(
+                            "sky-preview",
+                            image,
+                            egui::TextureOptions::LINEAR,
+                        ))
+                    }
+                }
+                self.uploaded = Some(self.state.display.clone());
+            }
+        }
+        if self.is_rendering() {
+            ctx.request_repaint_after(RENDER_POLL);
+        }
+        if self.busy() {
+            ctx.request_repaint_after(TASK_POLL);
+        }
+    }
+
+    /// The preview is still refining (or waiting for a pending restart).
+    fn is_rendering(&self) -> bool {
+        if self.state.render().paused {
+            return false;
+        }
+        self.state.is_dirty()
+            || self.pending_since.is_some()
+            || self
+                .frame
+                .as_ref()
+                .is_none_or(|f| f.epoch != self.started_epoch || !f.finished)
+    }
+
+    /// `--screenshot`: request it when due, once a frame is on screen.
+    fn poll_screenshot(&mut self, ctx: &egui::Context) {
+        let Some(plan) = &mut self.screenshot else {
+            return;
+        };
+        let started = *plan.started.get_or_insert_with(Instant::now);
+        if plan.requested {
+            return;
+        }
+        let elapsed = started.elapsed();
+        // Wait for a first frame, but not forever.
+        let due = elapsed >= plan.after
+            && (self.frame.is_some() || elapsed >= plan.after + Duration::from_secs(60));
+        if !due {
+            ctx.request_repaint_after(Duration::from_millis(50));
+            return;
+        }
+        plan.requested = true;
+        let path = plan.path.clone();
+        let shared = Arc::clone(&plan.result);
+        let tx = self.tasks_tx.clone();
+        let wake = self.wake();
+        if let Some(l) = self.latency.last {
+            eprintln!(
+                "skyrender: preview {}x{}: first frame {:.0} ms after start; {} spp on screen",
+                self.frame_scene.render.width,
+                self.frame_scene.render.height,
+                l.as_secs_f64() * 1e3,
+                self.frame.as_ref().map_or(0, |f| f.spp)
+            );
+        }
+        self.tasks_running += 1;
+        ctx.request_screenshot(move |image| {
+            // Encode off the thread that delivers the image.
+            std::thread::spawn(move || {
+                let [w, h] = image.size;
+                let rgb: Vec<u8> = image
+                    .pixels
+                    .iter()
+                    .flat_map(|c| [c.r(), c.g(), c.b()])
+                    .collect();
+                let result = io::write_png_atomic(
+                    &path,
+                    w as u32,
+                    h as u32,
+                    &rgb,
+                    image::ExtendedColorType::Rgb8,
+                );
+                *shared
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner) = Some(result.clone());
+                let _ = tx.send(TaskResult::Saved("screenshot", path, result));
+                wake();
+            });
+        });
+    }
+
+    /// Draw the whole app into `ui` (the window's root).
+    pub fn show(&mut self, ui: &mut egui::Ui) {
+        let ctx = ui.ctx().clone();
+        if self.ctx.is_none() {
+            self.ctx = Some(ctx.clone());
+        }
+        self.poll_tasks();
+        self.poll_render(&ctx);
+        self.poll_screenshot(&ctx);
+
+        egui::Panel::bottom("status").show(ui, |ui| self.status_bar(ui));
+        egui::Panel::left("controls")
+            .resizable(true)
+            .default_size(300.0)
+            .show(ui, |ui| {
+                egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
+            });
+        egui::CentralPanel::default().show(ui, |ui| self.view(ui));
+        // Apply changes made this frame right away (no frame's delay).
+        self.poll_render(&ctx);
+    }
+
+    fn status_bar(&mut self, ui: &mut egui::Ui) {
+        ui.horizontal_wrapped(|ui| {
+            let (w, h) = (
+                self.started_scene.render.width,
+                self.started_scene.render.height,
+            );
+            let state = if self.state.render().paused {
+                "paused"
+            } else if self.is_rendering() {
+                "rendering"
+            } else {
+                "done"
+            };
+            ui.label(RichText::new(state).strong());
+            match &self.frame {
+                Some(f) => {
+                    ui.label(format!("{} / {} spp", f.spp, self.started_scene.render.spp))
+                        .on_hover_text("Samples per pixel accumulated / target");
+                    ui.label(format!("{:.2} M paths/s", f.paths_per_second / 1e6))
+                        .on_hover_text("Camera paths traced per second");
+                    ui.label(format!("{:.1} s", f.elapsed.as_secs_f64()))
+                        .on_hover_text("Time since the image started accumulating");
+                    ui.label(format!("{} discarded", f.discarded))
+                        .on_hover_text("Samples dropped as non-finite or negative");
+                }
+                None => {
+                    ui.label("no frame yet");
+                }
+            }
+            ui.label(format!("{w}×{h} px"))
+                .on_hover_text("Preview resolution");
+            if let Some(l) = self.latency.last {
+                ui.label(format!("first frame {:.0} ms", l.as_secs_f64() * 1e3))
+                    .on_hover_text("Time from the latest change to its first frame on screen");
+            }
+            if let Some(error) = self.state.last_error.clone() {
+                ui.separator();
+                ui.colored_label(Color32::from_rgb(255, 110, 100), format!("⚠ {error}"));
+                if ui
+                    .small_button("Dismiss")
+                    .on_hover_text("Clear this error")
+                    .clicked()
+                {
+                    self.state.last_error = None;
+                }
+            } else if let Some(message) = &self.state.message {
+                ui.separator();
+                ui.weak(message);
+            }
+        });
+    }
+
+    fn controls(&mut self, ui: &mut egui::Ui) {
+        ui.heading("skyrender");
+        self.presets_group(ui);
+        self.sun_group(ui);
+        self.observer_group(ui);
+        self.atmosphere_group(ui);
+        self.camera_group(ui);
+        self.display_group(ui);
+        self.render_group(ui);
+        self.export_group(ui);
+    }
+
+    fn presets_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Presets")
+            .default_open(true)
+            .show(ui, |ui| {
+                ui.horizontal_wrapped(|ui| {
+                    for (name, text) in PRESETS {
+                        let summary = text
+                            .lines()
+                            .next()
+                            .unwrap_or("")
+                            .trim_start_matches('#')
+                            .trim();
+                        if ui.button(name).on_hover_text(summary).clicked() {
+                            self.state.load_preset(name);
+                        }
+                    }
+                });
+                ui.horizontal(|ui| {
+                    let enabled = !self.dialog_open;
+                    if ui
+                        .add_enabled(enabled, egui::Button::new("Save scene…"))
+                        .on_hover_text(
+                            "Save the scene as TOML (usable with `skyrender render --scene`)",
+                        )
+                        .clicked()
+                    {
+                        self.open_dialog(Dialog::SaveScene);
+                    }
+                    if ui
+                        .add_enabled(enabled, egui::Button::new("Load scene…"))
+                        .on_hover_text("Load a scene TOML")
+                        .clicked()
+                    {
+                        self.open_dialog(Dialog::LoadScene);
+                    }
+                });
+            });
+    }
+
+    fn sun_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Sun")
+            .default_open(true)
+            .show(ui, |ui| {
+                let sun = self.state.scene().sun.clone();
+                if let Some(v) = slider(
+                    ui,
+                    sun.elevation_deg,
+                    SUN_ELEVATION_RANGE,
+                    "Elevation",
+                    "°",
+                    "Sun elevation above the astronomical horizon, degrees (negative: below it)",
+                ) {
+                    self.state.set_sun_elevation(v);
+                }
+                if let Some(v) = slider(
+                    ui,
+                    sun.azimuth_deg,
+                    (0.0, 360.0),
+                    "Azimuth",
+                    "°",
+                    "Sun azimuth, degrees clockwise from north (90 east, 180 south, 270 west)",
+                ) {
+                    self.state.set_sun_azimuth(v);
+                }
+            });
+    }
+
+    fn observer_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Observer").default_open(true).show(ui, |ui| {
+            let altitude = self.state.scene().observer.altitude_m;
+            let mut position = altitude_to_slider(altitude);
+            let response = ui
+                .add(
+                    Slider::new(&mut position, 0.0..=altitude_to_slider(MAX_APP_ALTITUDE_M))
+                        .text("Altitude")
+                        .custom_formatter(|p, _| format_altitude(slider_to_altitude(p)))
+                        .custom_parser(|s| parse_altitude(s).map(altitude_to_slider)),
+                )
+                .on_hover_text("Height of the eye above the ground (logarithmic scale, 0 m to 1000 km); type e.g. \"10 km\"");
+            if response.changed() {
+                self.state.set_altitude_m(slider_to_altitude(position));
+            }
+            ui.horizontal(|ui| {
+                for (label, m, tip) in [
+                    ("Ground", GROUND_ALTITUDE_M, "Standing on the ground (eye height 2 m)"),
+                    ("Airliner 10 km", 10_000.0, "Cruising altitude of an airliner"),
+                    ("Orbit 400 km", 400_000.0, "Low Earth orbit, like the ISS"),
+                ] {
+                    if ui.selectable_label(altitude == m, label).on_hover_text(tip).clicked() {
+                        self.state.set_altitude_m(m);
+                    }
+                }
+            });
+        });
+    }
+
+    fn atmosphere_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Atmosphere").default_open(true).show(ui, |ui| {
+            let a = self.state.atmosphere().clone();
+            let mut aerosols = a.aerosols;
+            if ui
+                .checkbox(&mut aerosols, "Aerosols")
+                .on_hover_text("Haze particles (Elterman's profile): whiter sky near the horizon, glow around the sun")
+                .changed()
+            {
+                self.state.set_aerosols(aerosols);
+            }
+            ui.add_enabled_ui(aerosols, |ui| {
+                if let Some(v) = slider(
+                    ui,
+                    a.aerosol_amount,
+                    AEROSOL_AMOUNT_RANGE,
+                    "Aerosol amount",
+                    "×",
+                    "Multiple of the standard aerosol profile (1 = clear standard day)",
+                ) {
+                    self.state.set_aerosol_amount(v);
+                }
+            });
+            let mut ozone = a.ozone;
+            if ui
+                .checkbox(&mut ozone, "Ozone")
+                .on_hover_text("Ozone absorption (Chappuis band): keeps the twilight zenith blue")
+                .changed()
+            {
+                self.state.set_ozone(ozone);
+            }
+            ui.add_enabled_ui(ozone, |ui| {
+                ui.horizontal(|ui| {
+                    if let Some(v) = slider(
+                        ui,
+                        self.state.ozone_column_du(),
+                        OZONE_DU_RANGE,
+                        "Ozone column",
+                        " DU",
+                        "Total ozone column in Dobson units (about 300 is typical)",
+                    ) {
+                        self.state.set_ozone_du(Some(v));
+                    }
+                    if ui
+                        .add_enabled(a.ozone_du.is_some(), egui::Button::new("Profile").small())
+                        .on_hover_text("Use the model profile's own column")
+                        .clicked()
+                    {
+                        self.state.set_ozone_du(None);
+                    }
+                });
+            });
+            if let Some(v) = slider(
+                ui,
+                a.ground_albedo,
+                (0.0, 1.0),
+                "Ground albedo",
+                "",
+                "Fraction of light the (Lambertian) ground reflects: 0.1 forest or sea, 0.3 average, 0.8 snow",
+            ) {
+                self.state.set_ground_albedo(v);
+            }
+        });
+    }
+
+    fn camera_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Camera").default_open(true).show(ui, |ui| {
+            let camera = self.state.scene().camera.clone();
+            ui.horizontal(|ui| {
+                for (kind, label, tip) in [
+                    (CameraKind::Fisheye, "Fisheye", "All-sky view looking straight up, north at the top"),
+                    (CameraKind::Equirect, "Equirect", "Whole sphere as a 2:1 latitude–longitude map, north in the middle"),
+                    (CameraKind::Perspective, "Perspective", "Ordinary camera; drag the view or use the arrow keys to look around"),
+                ] {
+                    if ui.selectable_label(camera.kind == kind, label).on_hover_text(tip).clicked() {
+                        self.state.set_camera_kind(kind);
+                    }
+                }
+            });
+            match camera.kind {
+                CameraKind::Perspective => {
+                    if let Some(v) = slider(
+                        ui,
+                        camera.fov_deg,
+                        PERSPECTIVE_FOV_RANGE,
+                        "Field of view",
+                        "°",
+                        "Horizontal field of view, degrees",
+                    ) {
+                        self.state.set_fov(v);
+                    }
+                    if let Some(v) = slider(ui, camera.yaw_deg, (-180.0, 180.0), "Yaw", "°", "View direction, degrees clockwise from north") {
+                        self.state.set_view(v, camera.pitch_deg);
+                    }
+                    if let Some(v) = slider(ui, camera.pitch_deg, (-90.0, 90.0), "Pitch", "°", "View elevation above the horizon, degrees") {
+                        self.state.set_view(camera.yaw_deg, v);
+                    }
+                    ui.weak("Drag the view or use the arrow keys to look around.");
+                }
+                CameraKind::Fisheye => {
+                    if let Some(v) = slider(
+                        ui,
+                        camera.fov_deg,
+                        FISHEYE_FOV_RANGE,
+                        "Field of view",
+                        "°",
+                        "Full field of view of the fisheye circle, degrees (180 = down to the horizon)",
+                    ) {
+                        self.state.set_fov(v);
+                    }
+                    if let Some(v) = slider(ui, camera.yaw_deg, (-180.0, 180.0), "Rotation", "°", "Turns the all-sky image, degrees") {
+                        self.state.set_view(v, camera.pitch_deg);
+                    }
+                }
+                CameraKind::Equirect => {
+                    ui.weak("The map is geographic: north in the middle, east to the right.");
+                }
+            }
+        });
+    }
+
+    fn display_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Display")
+            .default_open(true)
+            .show(ui, |ui| {
+                let display = &mut self.state.display;
+                ui.checkbox(&mut display.auto_exposure, "Auto exposure")
+                    .on_hover_text("Map the image's log-average luminance to middle grey");
+                let (lo, hi) = EXPOSURE_RANGE;
+                ui.add_enabled(
+                    !display.auto_exposure,
+                    Slider::new(&mut display.exposure_ev, lo..=hi)
+                        .text("Exposure")
+                        .suffix(" EV")
+                        .fixed_decimals(1),
+                )
+                .on_hover_text("Display value = luminance (cd/m²) × 2^EV, then the tone curve")
+                .on_disabled_hover_text("Set automatically; untick Auto exposure to adjust");
+                egui::ComboBox::from_label("Tone curve")
+                    .selected_text(display.tone_curve.label())
+                    .show_ui(ui, |ui| {
+                        for curve in ToneCurve::ALL {
+                            ui.selectable_value(&mut display.tone_curve, curve, curve.label());
+                        }
+                    })
+                    .response
+                    .on_hover_text("How linear radiance becomes screen brightness");
+                ui.checkbox(&mut display.mark_sun, "Mark the sun")
+                    .on_hover_text("Draw a ring where the sun is");
+            });
+    }
+
+    fn render_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Render")
+            .default_open(true)
+            .show(ui, |ui| {
+                let render = self.state.render().clone();
+                let mut scale = render.preview_scale;
+                let (lo, hi) = PREVIEW_SCALE_RANGE;
+                let (w, h) = self.state.preview_size();
+                if ui
+                    .add(
+                        Slider::new(&mut scale, lo..=hi)
+                            .text("Preview scale")
+                            .suffix("×")
+                            .fixed_decimals(2),
+                    )
+                    .on_hover_text(format!(
+                        "Preview resolution relative to 320×160 (now {w}×{h} px); lower is faster"
+                    ))
+                    .changed()
+                {
+                    self.state.set_preview_scale(scale);
+                }
+                let mut spp = render.target_spp;
+                if ui
+                    .add(
+                        Slider::new(&mut spp, 1..=MAX_TARGET_SPP)
+                            .logarithmic(true)
+                            .text("Target spp"),
+                    )
+                    .on_hover_text("Samples per pixel after which the preview stops refining")
+                    .changed()
+                {
+                    self.state.set_target_spp(spp);
+                }
+                let label = if render.paused {
+                    "▶ Resume"
+                } else {
+                    "⏸ Pause"
+                };
+                if ui
+                    .button(label)
+                    .on_hover_text("Pause or resume refining (the image is kept)")
+                    .clicked()
+                {
+                    self.state.set_paused(!render.paused);
+                }
+            });
+    }
+
+    fn export_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Export").default_open(true).show(ui, |ui| {
+            let export = self.state.export.clone();
+            egui::ComboBox::from_label("Panorama size")
+                .selected_text(format!("{} × {}", export.width, export.height()))
+                .show_ui(ui, |ui| {
+                    for width in EXPORT_WIDTHS {
+                        if ui
+                            .selectable_label(export.width == width, format!("{width} × {}", width / 2))
+                            .clicked()
+                        {
+                            self.state.set_export_width(width);
+                        }
+                    }
+                })
+                .response
+                .on_hover_text("Size of the equirectangular EXR panorama");
+            let mut spp = export.spp;
+            if ui
+                .add(Slider::new(&mut spp, 1..=MAX_EXPORT_SPP).logarithmic(true).text("Export spp"))
+                .on_hover_text("Samples per pixel of the exported panorama")
+                .changed()
+            {
+                self.state.set_export_spp(spp);
+            }
+            let running = self.export_job.is_some();
+            if ui
+                .add_enabled(!running && !self.dialog_open, egui::Button::new("Export HDR panorama…"))
+                .on_hover_text(
+                    "Render the scene as an equirectangular OpenEXR in the background: the same file as \
+                     `skyrender render --camera equirect` writes",
+                )
+                .clicked()
+            {
+                self.open_dialog(Dialog::Export);
+            }
+            match self.state.export_status.clone() {
+                ExportStatus::Running { done, total, .. } => {
+                    ui.horizontal(|ui| {
+                        let fraction = done as f32 / total.max(1) as f32;
+                        ui.add(
+                            egui::ProgressBar::new(fraction)
+                                .text(format!("{done} / {total} spp"))
+                                .desired_width(160.0),
+                        );
+                        if ui.button("Cancel").on_hover_text("Stop the export; nothing is written").clicked() {
+                            self.cancel_export();
+                        }
+                    });
+                }
+                ExportStatus::Finished { path, elapsed } => {
+                    ui.weak(format!("Exported {} in {:.1} s", path.display(), elapsed.as_secs_f64()));
+                }
+                ExportStatus::Cancelled => {
+                    ui.weak("Export cancelled; nothing written.");
+                }
+                ExportStatus::Failed(e) => {
+                    ui.colored_label(Color32::from_rgb(255, 110, 100), format!("Export failed: {e}"));
+                }
+                ExportStatus::Idle => {}
+            }
+            if ui
+                .add_enabled(self.frame.is_some() && !self.dialog_open, egui::Button::new("Save view as PNG/EXR…"))
+                .on_hover_text("Save the image on screen: PNG as shown, EXR as linear HDR")
+                .clicked()
+            {
+                self.open_dialog(Dialog::SaveView);
+            }
+        });
+    }
+
+    /// The central image, with dragging and arrow keys to turn the view.
+    fn view(&mut self, ui: &mut egui::Ui) {
+        let available = ui.available_rect_before_wrap();
+        let Some((texture, frame)) = self.texture.as_ref().zip(self.frame.as_ref()) else {
+            ui.centered_and_justified(|ui| {
+                ui.horizontal_centered(|ui| {
+                    ui.spinner();
+                    ui.label("rendering the first pass…");
+                });
+            });
+            return;
+        };
+        let (w, h) = (frame.image.width as f32, frame.image.height as f32);
+        let scale = (available.width() / w).min(available.height() / h).max(0.0);
+        let rect =
+            egui::Rect::from_center_size(available.center(), egui::vec2(w * scale, h * scale));
+        let response = ui.allocate_rect(rect, Sense::click_and_drag());
+        response.widget_info(|| egui::WidgetInfo::labeled(egui::Role::Image, true, "Sky view"));
+        let uv = egui::Rect::from_min_max(egui::pos2(0.0, 0.0), egui::pos2(1.0, 1.0));
+        ui.painter().image(texture.id(), rect, uv, Color32::WHITE);
+
+        if self.state.display.mark_sun {
+            let scene = &self.frame_scene;
+            let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
+            let sun = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
+            if let Some((px, py)) = camera.project(sun) {
+                let centre = rect.min
+                    + egui::vec2(px as f32 / w * rect.width(), py as f32 / h * rect.height());
+                if rect.expand(1.0).contains(centre) {
+                    let stroke =
+                        egui::Stroke::new(1.5, Color32::from_rgba_unmultiplied(255, 230, 120, 200));
+                    ui.painter().circle_stroke(centre, 10.0, stroke);
+                }
+            }
+        }
+
+        let kind = self.state.scene().camera.kind;
+        if response.dragged() && kind != CameraKind::Equirect {
+            let delta = response.drag_delta();
+            let fov = self.state.scene().camera.fov_deg;
+            let per_point = fov / f64::from(rect.width().max(1.0));
+            match kind {
+                CameraKind::Perspective => {
+                    self.state.rotate_view(
+                        -f64::from(delta.x) * per_point,
+                        f64::from(delta.y) * per_point,
+                    );
+                }
+                _ => self.state.rotate_view(f64::from(delta.x) * per_point, 0.0),
+            }
+        }
+        let nothing_focused = ui.memory(|m| m.focused().is_none());
+        if nothing_focused && kind != CameraKind::Equirect {
+            let (d_yaw, d_pitch) = ui.input(|i| {
+                let step = if i.modifiers.shift {
+                    ARROW_STEP_DEG / 5.0
+                } else {
+                    ARROW_STEP_DEG
+                };
+                let key = |k| if i.key_pressed(k) { step } else { 0.0 };
+                (
+                    key(egui::Key::ArrowRight) - key(egui::Key::ArrowLeft),
+                    key(egui::Key::ArrowUp) - key(egui::Key::ArrowDown),
+                )
+            });
+            if d_yaw != 0.0 || d_pitch != 0.0 {
+                let d_pitch = if kind == CameraKind::Perspective {
+                    d_pitch
+                } else {
+                    0.0
+                };
+                self.state.rotate_view(d_yaw, d_pitch);
+            }
+        }
+    }
+}
+
+/// A labelled slider with units and a tooltip over `value`; the new value if
+/// the user changed it.
+fn slider(
+    ui: &mut egui::Ui,
+    value: f64,
+    (lo, hi): (f64, f64),
+    text: &str,
+    suffix: &str,
+    tooltip: &str,
+) -> Option<f64> {
+    let mut v = value;
+    let response = ui
+        .add(Slider::new(&mut v, lo..=hi).text(text).suffix(suffix))
+        .on_hover_text(tooltip);
+    (response.changed() && v != value).then_some(v)
+}
+
+impl eframe::App for SkyApp {
+    fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
+        self.show(ui);
+    }
+}
+
+/// The line printed when there is no display to open a window on.
+pub const NO_DISPLAY_MESSAGE: &str =
+    "no display found: the preview app needs a window; on a headless machine use \
+     `skyrender render --preset midday -o sky.exr`";
+
+/// Whether a window can be opened (on Linux and the BSDs: `DISPLAY` or
+/// `WAYLAND_DISPLAY` is set).
+fn has_display() -> bool {
+    if cfg!(all(unix, not(target_os = "macos"))) {
+        ["DISPLAY", "WAYLAND_DISPLAY"]
+            .iter()
+            .any(|v| std::env::var_os(v).is_some_and(|s| !s.is_empty()))
+    } else {
+        true
+    }
+}
+
+/// Open the preview window (wgpu renderer), starting from `preset` (default
+/// `midday`). With `screenshot`, save a PNG of the window after
+/// `screenshot_after_s` seconds of refining and exit.
+pub fn run_app(
+    preset: Option<&str>,
+    screenshot: Option<&Path>,
+    screenshot_after_s: f64,
+) -> Result<(), String> {
+    let scene = Scene::preset(preset.unwrap_or("midday")).map_err(|e| e.to_string())?;
+    if !(screenshot_after_s.is_finite() && (0.0..=86_400.0).contains(&screenshot_after_s)) {
+        return Err(format!(
+            "invalid screenshot delay: {screenshot_after_s} is outside the valid range 0 to 86400 s"
+        ));
+    }
+    if let Some(path) = screenshot {
+        if !path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("png"))
+        {
+            return Err(format!(
+                "invalid screenshot path '{}': it must end in .png",
+                path.display()
+            ));
+        }
+    }
+    if !has_display() {
+        return Err(NO_DISPLAY_MESSAGE.into());
+    }
+    let result = Arc::new(Mutex::new(None));
+    let options = eframe::NativeOptions {
+        viewport: egui::ViewportBuilder::default()
+            .with_title("skyrender")
+            .with_inner_size([1240.0, 760.0])
+            .with_min_inner_size([640.0, 400.0]),
+        renderer: eframe::Renderer::Wgpu,
+        ..Default::default()
+    };
+    let plan = screenshot.map(|p| {
+        (
+            p.to_path_buf(),
+            Duration::from_secs_f64(screenshot_after_s),
+            Arc::clone(&result),
+        )
+    });
+    eframe::run_native(
+        "skyrender",
+        options,
+        Box::new(move |_cc| {
+            let mut app = SkyApp::new(scene);
+            if let Some((path, after, result)) = plan {
+                app = app.with_screenshot(path, after, result);
+            }
+            Ok(Box::new(app))
+        }),
+    )
+    .map_err(|e| {
+        let text = e.to_string();
+        format!(
+            "cannot open the preview window: {}",
+            text.lines().next().unwrap_or_default()
+        )
+    })?;
+    if screenshot.is_some() {
+        let outcome = result
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+            .take();
+        return outcome
+            .unwrap_or_else(|| Err("the window closed before the screenshot was taken".into()));
+    }
+    Ok(())
+}

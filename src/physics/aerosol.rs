@@ -1,0 +1,275 @@
+//! Aerosols: Elterman's (1968) vertical extinction profile, its wavelength
+//! dependence, and the Henyey–Greenstein and Cornette–Shanks phase functions.
+//!
+//! Elterman, L. (1968), *UV, Visible, and IR Attenuation for Altitudes to
+//! 50 km*, AFCRL-68-0153. Its aerosol-only column is available to us at
+//! 340 nm only; the report's *total* attenuation is tabulated at 22
+//! wavelengths. We recover the aerosol part at each of them by subtracting our
+//! own Rayleigh (Bucholtz 1995) and ozone (Serdyuchenko–Gorshelev 2014, AFGL
+//! profile) coefficients from the totals, summed over 0–5 km where aerosols
+//! dominate and ozone is a small correction, and normalise by the same
+//! quantity at 340 nm (which then reproduces the 340 nm table's own shape).
+//! Between Elterman's wavelengths the ratio is interpolated log–log
+//! (piecewise Ångström law), and extrapolated with the end exponents.
+
+use std::f64::consts::PI;
+use std::sync::OnceLock;
+
+use crate::data::{self, Table};
+use crate::physics::{ozone, rayleigh, standard_atmosphere};
+
+/// Elterman's sea-level-to-50 km aerosol extinction at 340 nm, per level.
+pub struct Profile {
+    altitudes_m: Vec<f64>,
+    extinction_per_m: Vec<f64>,
+}
+
+impl Profile {
+    fn load() -> Self {
+        let table = Table::parse(data::ELTERMAN_AEROSOL);
+        Self {
+            altitudes_m: table.column_at(0).iter().map(|km| km * 1000.0).collect(),
+            extinction_per_m: table.column_at(1).iter().map(|k| k * 1e-3).collect(),
+        }
+    }
+
+    pub fn get() -> &'static Self {
+        static PROFILE: OnceLock<Profile> = OnceLock::new();
+        PROFILE.get_or_init(Self::load)
+    }
+
+    /// Extinction at 340 nm, m⁻¹: linear between Elterman's 1 km levels, zero
+    /// above 50 km (where it has fallen to 9 × 10⁻¹⁰ m⁻¹).
+    pub fn extinction_340nm_per_m(&self, altitude_m: f64) -> f64 {
+        if altitude_m > *self.altitudes_m.last().unwrap() {
+            return 0.0;
+        }
+        data::interpolate(&self.altitudes_m, &self.extinction_per_m, altitude_m)
+    }
+
+    /// Vertical optical depth at 340 nm from `altitude_m` to the top (trapezoid
+    /// rule: exact for the piecewise-linear profile).
+    pub fn optical_depth_340nm(&self, altitude_m: f64) -> f64 {
+        let mut tau = 0.0;
+        for i in 0..self.altitudes_m.len() - 1 {
+            let (z0, z1) = (self.altitudes_m[i], self.altitudes_m[i + 1]);
+            let lo = z0.max(altitude_m);
+            if z1 <= lo {
+                continue;
+            }
+            let k_lo = self.extinction_340nm_per_m(lo);
+            let k_hi = self.extinction_per_m[i + 1];
+            tau += 0.5 * (k_lo + k_hi) * (z1 - lo);
+        }
+        tau
+    }
+}
+
+/// Aerosol extinction relative to 340 nm at Elterman's wavelengths.
+pub struct SpectralFactor {
+    ln_wavelength: Vec<f64>,
+    ln_factor: Vec<f64>,
+}
+
+impl SpectralFactor {
+    fn derive() -> Self {
+        let total = Table::parse(data::ELTERMAN_TOTAL);
+        let altitudes_m: Vec<f64> = total.column_at(0).iter().map(|km| km * 1000.0).collect();
+        let o3 = ozone::CrossSections::get();
+        let o3_profile = ozone::Profile::get();
+        // Aerosol attenuation summed over the 0–5 km levels at one column.
+        let aerosol_sum = |column: usize, wavelength_nm: f64| -> f64 {
+            let rayleigh_xs = rayleigh::cross_section_m2(wavelength_nm);
+            (0..altitudes_m.len())
+                .filter(|&i| altitudes_m[i] <= 5_000.0)
+                .map(|i| {
+                    let z = altitudes_m[i];
+                    let air = standard_atmosphere::air_state(z);
+                    let rayleigh_per_m = rayleigh_xs * air.number_density_m3;
+                    let ozone_per_m = o3.cross_section_m2(wavelength_nm, air.temperature_k)
+                        * o3_profile.number_density_m3(z);
+                    total.rows[i][column] * 1e-3 - rayleigh_per_m - ozone_per_m
+                })
+                .sum()
+        };
+        let mut ln_wavelength = Vec::new();
+        let mut ln_factor = Vec::new();
+        let reference = aerosol_sum(5, 340.0);
+        for (column, name) in total.columns.iter().enumerate().skip(1) {
+            let wavelength_nm: f64 = name
+                .trim_start_matches("total_attenuation_")
+                .trim_end_matches("nm_per_km")
+                .parse()
+                .expect("column name carries the wavelength");
+            // Below 300 nm ozone dominates the totals and the difference is
+            // meaningless; we start at 300 nm.
+            if wavelength_nm < 300.0 {
+                continue;
+            }
+            ln_wavelength.push(wavelength_nm.ln());
+            ln_factor.push((aerosol_sum(column, wavelength_nm) / reference).ln());
+        }
+        Self {
+            ln_wavelength,
+            ln_factor,
+        }
+    }
+
+    pub fn get() -> &'static Self {
+        static FACTOR: OnceLock<SpectralFactor> = OnceLock::new();
+        FACTOR.get_or_init(Self::derive)
+    }
+
+    /// aerosol(λ) / aerosol(340 nm).
+    pub fn at(&self, wavelength_nm: f64) -> f64 {
+        let x = wavelength_nm.ln();
+        let (xs, ys) = (&self.ln_wavelength, &self.ln_factor);
+        let n = xs.len();
+        let y = if x < xs[0] {
+            ys[0] + (x - xs[0]) * (ys[1] - ys[0]) / (xs[1] - xs[0])
+        } else if x > xs[n - 1] {
+            ys[n - 1] + (x - xs[n - 1]) * (ys[n - 1] - ys[n - 2]) / (xs[n - 1] - xs[n - 2])
+        } else {
+            data::interpolate(xs, ys, x)
+        };
+        y.exp()
+    }
+
+    /// The Ångström exponent between two wavelengths: −d ln β / d ln λ.
+    pub fn angstrom_exponent(&self, from_nm: f64, to_nm: f64) -> f64 {
+        -(self.at(to_nm) / self.at(from_nm)).ln() / (to_nm / from_nm).ln()
+    }
+}
+
+/// Aerosol phase function model.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum PhaseModel {
+    /// Henyey & Greenstein (1941).
+    HenyeyGreenstein,
+    /// Cornette & Shanks (1992), a Mie-like modification of Henyey–Greenstein.
+    CornetteShanks,
+}
+
+/// Henyey–Greenstein phase function per steradian; `mu` is the cosine between
+/// the incident and scattered propagation directions.
+pub fn henyey_greenstein(mu: f64, g: f64) -> f64 {
+    let denom = 1.0 + g * g - 2.0 * g * mu;
+    (1.0 - g * g) / (4.0 * PI * denom * denom.sqrt())
+}
+
+/// Cornette–Shanks (1992) phase function per steradian.
+pub fn cornette_shanks(mu: f64, g: f64) -> f64 {
+    1.5 * (1.0 + mu * mu) / (2.0 + g * g) * henyey_greenstein(mu, g)
+}
+
+/// Invert the Henyey–Greenstein CDF analytically.
+pub fn sample_henyey_greenstein(u: f64, g: f64) -> f64 {
+    if g.abs() < 1e-4 {
+        return 1.0 - 2.0 * u;
+    }
+    let s = (1.0 - g * g) / (1.0 - g + 2.0 * g * u);
+    ((1.0 + g * g - s * s) / (2.0 * g)).clamp(-1.0, 1.0)
+}
+
+impl PhaseModel {
+    pub fn eval(self, mu: f64, g: f64) -> f64 {
+        match self {
+            Self::HenyeyGreenstein => henyey_greenstein(mu, g),
+            Self::CornetteShanks => cornette_shanks(mu, g),
+        }
+    }
+
+    /// Sample a cosine. Cornette–Shanks is sampled exactly by rejection from
+    /// Henyey–Greenstein: CS/HG = 3(1+μ²)/(2(2+g²)) ≤ 3/(2+g²), so accept with
+    /// probability (1+μ²)/2 (expected ≤ 2 proposals).
+    pub fn sample(self, g: f64, mut uniform: impl FnMut() -> f64) -> f64 {
+        match self {
+            Self::HenyeyGreenstein => sample_henyey_greenstein(uniform(), g),
+            Self::CornetteShanks => loop {
+                let mu = sample_henyey_greenstein(uniform(), g);
+                if uniform() * 2.0 < 1.0 + mu * mu {
+                    return mu;
+                }
+            },
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn elterman_optical_depth_at_340_nm() {
+        // data/README.md: vertical aerosol optical depth 0–50 km at 340 nm = 0.380.
+        let tau = Profile::get().optical_depth_340nm(0.0);
+        assert!((tau - 0.380).abs() < 0.002, "{tau}");
+    }
+
+    #[test]
+    fn derived_spectral_factor_matches_the_documented_estimates() {
+        // data/README.md estimates 0.84 (400 nm), 0.66 (550), 0.56 (700), 0.47 (1060).
+        let f = SpectralFactor::get();
+        assert!((f.at(340.0) - 1.0).abs() < 1e-9);
+        for (nm, expected) in [(400.0, 0.84), (550.0, 0.66), (700.0, 0.56), (1060.0, 0.47)] {
+            let got = f.at(nm);
+            assert!((got / expected - 1.0).abs() < 0.06, "{nm} nm: {got}");
+        }
+        // Elterman's 25 km visual range: 3.912/25 km = 0.156 km⁻¹ at 550 nm.
+        let sea_level_550 = Profile::get().extinction_340nm_per_m(0.0) * f.at(550.0) * 1e3;
+        assert!((sea_level_550 - 0.156).abs() < 0.01, "{sea_level_550}");
+        let alpha = f.angstrom_exponent(400.0, 700.0);
+        assert!((0.3..1.5).contains(&alpha), "{alpha}");
+    }
+
+    #[test]
+    fn phase_functions_are_normalised() {
+        for model in [PhaseModel::HenyeyGreenstein, PhaseModel::CornetteShanks] {
+            for g in [0.0, 0.5, 0.7, 0.85] {
+                let n = 200_000;
+                let integral: f64 = (0..n)
+                    .map(|i| {
+                        let mu = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(n);
+                        2.0 * PI * model.eval(mu, g) * 2.0 / f64::from(n)
+                    })
+                    .sum();
+                assert!((integral - 1.0).abs() < 1e-3, "{model:?} g={g}: {integral}");
+            }
+        }
+    }
+
+    #[test]
+    fn sampled_mean_cosine_is_g() {
+        // For HG, E[μ] = g exactly. Standard error of the mean ≤ 1/sqrt(n).
+        let mut rng = crate::rng::Rng::new(3, 4);
+        let n = 100_000;
+        let g = 0.7;
+        let mean: f64 = (0..n)
+            .map(|_| PhaseModel::HenyeyGreenstein.sample(g, || rng.uniform()))
+            .sum::<f64>()
+            / f64::from(n);
+        assert!((mean - g).abs() < 4.0 / f64::from(n).sqrt(), "{mean}");
+    }
+
+    #[test]
+    fn cornette_shanks_sampling_matches_its_density() {
+        // Compare the sampled fraction of μ > 0.9 with the integral of the pdf.
+        let g = 0.7;
+        let mut rng = crate::rng::Rng::new(5, 6);
+        let n = 200_000;
+        let hits = (0..n)
+            .filter(|_| PhaseModel::CornetteShanks.sample(g, || rng.uniform()) > 0.9)
+            .count() as f64
+            / f64::from(n);
+        let m = 10_000;
+        let expected: f64 = (0..m)
+            .map(|i| {
+                let mu = 0.9 + 0.1 * (f64::from(i) + 0.5) / f64::from(m);
+                2.0 * PI * cornette_shanks(mu, g) * 0.1 / f64::from(m)
+            })
+            .sum();
+        let se = (expected * (1.0 - expected) / f64::from(n)).sqrt();
+        assert!((hits - expected).abs() < 4.0 * se, "{hits} vs {expected}");
+    }
+}

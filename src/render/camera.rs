@@ -1,0 +1,218 @@
+//! Cameras map pixel positions to view directions in the observer's local
+//! frame: x = east, y = north, z = up. Azimuths are degrees clockwise from
+//! north, elevations degrees above the astronomical horizon.
+//!
+//! * **Equirectangular** (full sphere, 2:1): column u ∈ [0, 1) ↦ azimuth
+//!   (u − ½)·360°, so the horizontal centre looks north and azimuth grows to
+//!   the right (east); row v ∈ [0, 1) ↦ elevation 90° − v·180°, so the top
+//!   row is the zenith. This is the usual lat–long environment-map layout;
+//!   yaw, pitch and roll are ignored so the map stays geographic.
+//! * **Angular fisheye** (equidistant: angle from the zenith ∝ radius),
+//!   looking at the zenith, the circle inscribed in the image spanning
+//!   `fov_deg` (180° by default). North is up; seen from below, east is on
+//!   the left, as on an all-sky camera. `yaw_deg` turns the image.
+//! * **Perspective** (rectilinear): view centre at (`yaw_deg`, `pitch_deg`),
+//!   horizontal field of view `fov_deg`, `roll_deg` about the view axis.
+
+use glam::DVec3;
+
+use crate::scene::{CameraKind, CameraParams};
+
+/// Unit direction for an azimuth (clockwise from north) and elevation, degrees.
+pub fn direction_from_az_el(azimuth_deg: f64, elevation_deg: f64) -> DVec3 {
+    let (sa, ca) = azimuth_deg.to_radians().sin_cos();
+    let (se, ce) = elevation_deg.to_radians().sin_cos();
+    DVec3::new(sa * ce, ca * ce, se)
+}
+
+#[derive(Clone, Debug)]
+pub struct Camera {
+    kind: CameraKind,
+    width: f64,
+    height: f64,
+    tan_half_fov: f64,
+    half_fov_rad: f64,
+    yaw_rad: f64,
+    /// Columns: right, up, forward (world from camera).
+    right: DVec3,
+    up: DVec3,
+    forward: DVec3,
+}
+
+impl Camera {
+    pub fn new(params: &CameraParams, width: u32, height: u32) -> Self {
+        let forward = direction_from_az_el(params.yaw_deg, params.pitch_deg);
+        let (sy, cy) = params.yaw_deg.to_radians().sin_cos();
+        let right0 = DVec3::new(cy, -sy, 0.0);
+        let up0 = right0.cross(forward);
+        // Roll: clockwise as seen by the viewer rotates the image content.
+        let (sr, cr) = params.roll_deg.to_radians().sin_cos();
+        let right = right0 * cr - up0 * sr;
+        let up = up0 * cr + right0 * sr;
+        let half = params.fov_deg.to_radians() / 2.0;
+        Self {
+            kind: params.kind,
+            width: f64::from(width),
+            height: f64::from(height),
+            tan_half_fov: half.min(89.5f64.to_radians()).tan(),
+            half_fov_rad: half,
+            yaw_rad: params.yaw_deg.to_radians(),
+            right,
+            up,
+            forward,
+        }
+    }
+
+    /// View direction through image position (`px`, `py`) in pixels from the
+    /// top-left corner, or `None` outside a fisheye's circle.
+    pub fn direction(&self, px: f64, py: f64) -> Option<DVec3> {
+        let u = px / self.width;
+        let v = py / self.height;
+        match self.kind {
+            CameraKind::Equirect => Some(direction_from_az_el((u - 0.5) * 360.0, 90.0 - v * 180.0)),
+            CameraKind::Perspective => {
+                let sx = (2.0 * u - 1.0) * self.tan_half_fov;
+                let sy = (1.0 - 2.0 * v) * self.tan_half_fov * self.height / self.width;
+                Some((self.forward + self.right * sx + self.up * sy).normalize())
+            }
+            CameraKind::Fisheye => {
+                let scale = self.width.min(self.height);
+                let nx = (2.0 * px - self.width) / scale;
+                let ny = (self.height - 2.0 * py) / scale;
+                let r = (nx * nx + ny * ny).sqrt();
+                if r > 1.0 {
+                    return None;
+                }
+                let zenith_angle = r * self.half_fov_rad;
+                let azimuth = (-nx).atan2(ny) + self.yaw_rad;
+                Some(direction_from_az_el(
+                    azimuth.to_degrees(),
+                    90.0 - zenith_angle.to_degrees(),
+                ))
+            }
+        }
+    }
+
+    /// Image position (pixels) where direction `dir` appears, if it does.
+    /// Used to check the mappings and to mark the sun in the preview.
+    pub fn project(&self, dir: DVec3) -> Option<(f64, f64)> {
+        let az = dir.x.atan2(dir.y).to_degrees();
+        let el = dir.z.clamp(-1.0, 1.0).asin().to_degrees();
+        match self.kind {
+            CameraKind::Equirect => {
+                let u = (az / 360.0 + 0.5).rem_euclid(1.0);
+                Some((u * self.width, (90.0 - el) / 180.0 * self.height))
+            }
+            CameraKind::Perspective => {
+                let z = dir.dot(self.forward);
+                if z <= 0.0 {
+                    return None;
+                }
+                let sx = dir.dot(self.right) / z / self.tan_half_fov;
+                let sy = dir.dot(self.up) / z / (self.tan_half_fov * self.height / self.width);
+                Some((
+                    (sx + 1.0) / 2.0 * self.width,
+                    (1.0 - sy) / 2.0 * self.height,
+                ))
+            }
+            CameraKind::Fisheye => {
+                let r = (90.0 - el).to_radians() / self.half_fov_rad;
+                if r > 1.0 {
+                    return None;
+                }
+                let a = az.to_radians() - self.yaw_rad;
+                let scale = self.width.min(self.height);
+                let nx = -r * a.sin();
+                let ny = r * a.cos();
+                Some((
+                    (nx * scale + self.width) / 2.0,
+                    (self.height - ny * scale) / 2.0,
+                ))
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn camera(kind: CameraKind, w: u32, h: u32) -> Camera {
+        Camera::new(
+            &CameraParams {
+                kind,
+                fov_deg: if kind == CameraKind::Fisheye {
+                    180.0
+                } else {
+                    90.0
+                },
+                ..CameraParams::default()
+            },
+            w,
+            h,
+        )
+    }
+
+    #[test]
+    fn equirect_layout_is_the_documented_one() {
+        let c = camera(CameraKind::Equirect, 360, 180);
+        let north = c.direction(180.0, 90.0).unwrap();
+        assert!((north - DVec3::Y).length() < 1e-9);
+        let east = c.direction(270.0, 90.0).unwrap();
+        assert!((east - DVec3::X).length() < 1e-9);
+        let zenith = c.direction(180.0, 0.0).unwrap();
+        assert!((zenith - DVec3::Z).length() < 1e-9);
+    }
+
+    #[test]
+    fn fisheye_has_north_up_east_left_and_zenith_centre() {
+        let c = camera(CameraKind::Fisheye, 200, 200);
+        assert!((c.direction(100.0, 100.0).unwrap() - DVec3::Z).length() < 1e-9);
+        let top = c.direction(100.0, 0.0).unwrap();
+        assert!((top - DVec3::Y).length() < 1e-9);
+        let left = c.direction(0.0, 100.0).unwrap();
+        assert!((left - DVec3::X).length() < 1e-9);
+        assert!(c.direction(0.0, 0.0).is_none());
+    }
+
+    #[test]
+    fn projection_inverts_direction() {
+        for kind in CameraKind::ALL {
+            let mut params = CameraParams {
+                kind,
+                yaw_deg: 30.0,
+                pitch_deg: 10.0,
+                roll_deg: 5.0,
+                ..CameraParams::default()
+            };
+            if kind == CameraKind::Fisheye {
+                params.fov_deg = 180.0;
+            }
+            let c = Camera::new(&params, 300, 200);
+            for (px, py) in [(150.0, 100.0), (20.5, 40.25), (280.0, 150.0)] {
+                if let Some(d) = c.direction(px, py) {
+                    let (x, y) = c.project(d).unwrap();
+                    assert!((x - px).abs() < 1e-6 && (y - py).abs() < 1e-6, "{kind:?}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn perspective_looks_at_yaw_and_pitch() {
+        let c = Camera::new(
+            &CameraParams {
+                kind: CameraKind::Perspective,
+                yaw_deg: 90.0,
+                pitch_deg: 30.0,
+                ..CameraParams::default()
+            },
+            100,
+            100,
+        );
+        let d = c.direction(50.0, 50.0).unwrap();
+        assert!((d - direction_from_az_el(90.0, 30.0)).length() < 1e-9);
+        // Right of centre is further clockwise (south of east).
+        assert!(c.direction(90.0, 50.0).unwrap().y < 0.0);
+    }
+}

@@ -1,0 +1,257 @@
+//! Rendering: a [`Renderer`] turns a validated [`Scene`] into samples on a
+//! [`Film`], one pass at a time, in parallel over rows with rayon.
+//!
+//! Determinism: every pixel sample draws from its own generator seeded by
+//! (scene seed, pass, pixel), and each pixel sums its passes in order, so the
+//! image does not depend on the number of threads.
+
+pub mod camera;
+pub mod film;
+pub mod integrator;
+pub mod medium;
+pub mod service;
+
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+pub use camera::{direction_from_az_el, Camera};
+pub use film::Film;
+pub use integrator::{Integrator, IntegratorOptions};
+pub use medium::{Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
+
+use crate::atmosphere::Atmosphere;
+use crate::rng::Rng;
+use crate::scene::{Scene, SceneError};
+use crate::spectrum::{ColourMatching, K_M};
+
+/// A scene made ready to render.
+pub struct Renderer {
+    pub scene: Scene,
+    pub atmosphere: Atmosphere,
+    medium: Medium,
+    camera: Camera,
+    cmf: &'static ColourMatching,
+    sun_direction: DVec3,
+    observer_m: DVec3,
+}
+
+/// Result of one pass.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PassStats {
+    /// Whether every row was rendered (false if cancelled).
+    pub completed: bool,
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Samples discarded as non-finite or negative.
+    pub discarded: u64,
+}
+
+/// One spectral radiance estimate with its Monte Carlo standard error.
+#[derive(Clone, Copy, Debug, serde::Serialize)]
+pub struct SpectralEstimate {
+    pub wavelength_nm: f64,
+    pub radiance: f64,
+    pub std_error: f64,
+}
+
+impl Renderer {
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        scene.validate()?;
+        let atmosphere = Atmosphere::new(scene.atmosphere.clone());
+        let medium = Medium::new(&atmosphere);
+        let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
+        Ok(Self {
+            observer_m: DVec3::new(
+                0.0,
+                0.0,
+                scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
+            ),
+            sun_direction: direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg),
+            cmf: ColourMatching::get(scene.render.observer),
+            scene: scene.clone(),
+            atmosphere,
+            medium,
+            camera,
+        })
+    }
+
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    pub fn sun_direction(&self) -> DVec3 {
+        self.sun_direction
+    }
+
+    pub fn new_film(&self) -> Film {
+        Film::new(self.scene.render.width, self.scene.render.height)
+    }
+
+    fn integrator(&self) -> Integrator<'_> {
+        Integrator::new(
+            &self.medium,
+            &self.scene.render.integrator,
+            self.sun_direction,
+        )
+    }
+
+    /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)
+    /// through the importance CDF, so each lane is distributed by the CMF-based
+    /// density and the lanes are stratified (Wilkie et al. 2014).
+    fn sample_lanes(&self, rng: &mut Rng) -> (SpectralLanes, Lanes) {
+        let n = self
+            .scene
+            .render
+            .integrator
+            .wavelengths_per_path
+            .clamp(1, LANES);
+        let u0 = rng.uniform();
+        let mut wavelengths = [0.0; LANES];
+        let mut pdfs = [0.0; LANES];
+        for k in 0..LANES {
+            let (w, p) = self
+                .cmf
+                .sample_wavelength((u0 + (k % n) as f64 / n as f64).fract());
+            wavelengths[k] = w;
+            pdfs[k] = p;
+        }
+        (
+            SpectralLanes::new(wavelengths, n, &self.medium, self.scene.render.unit_sun),
+            pdfs,
+        )
+    }
+
+    /// One XYZ sample (Y in cd m⁻²) through pixel (x, y), or `None` if the
+    /// estimate was not finite and non-negative.
+    pub fn sample_pixel(
+        &self,
+        integrator: &Integrator<'_>,
+        x: u32,
+        y: u32,
+        pass: u32,
+    ) -> Option<[f64; 3]> {
+        let width = self.scene.render.width;
+        let pixel = u64::from(y) * u64::from(width) + u64::from(x);
+        let mut rng = Rng::for_sample(self.scene.render.seed, u64::from(pass), pixel);
+        let px = f64::from(x) + rng.uniform();
+        let py = f64::from(y) + rng.uniform();
+        let Some(dir) = self.camera.direction(px, py) else {
+            return Some([0.0; 3]);
+        };
+        let (lanes, pdfs) = self.sample_lanes(&mut rng);
+        let radiance = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
+        let n = lanes.active;
+        let mut xyz = [0.0; 3];
+        for j in 0..n {
+            let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
+            let w = K_M * radiance[j] / (pdfs[j] * n as f64);
+            for c in 0..3 {
+                xyz[c] += w * bar[c];
+            }
+        }
+        xyz.iter()
+            .all(|v| v.is_finite() && *v >= 0.0)
+            .then_some(xyz)
+    }
+
+    /// Add one sample to every pixel of `film` (pass number `pass`). Stops
+    /// between rows once `cancelled()` returns true.
+    pub fn render_pass(
+        &self,
+        film: &mut Film,
+        pass: u32,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> PassStats {
+        let integrator = self.integrator();
+        let width = film.width as usize;
+        let discarded = AtomicU64::new(0);
+        let rows_done = AtomicU64::new(0);
+        film.xyz_sum
+            .par_chunks_mut(width)
+            .zip(film.row_passes.par_iter_mut())
+            .enumerate()
+            .for_each(|(y, (row, passes))| {
+                if cancelled() || *passes != pass {
+                    return;
+                }
+                for (x, sum) in row.iter_mut().enumerate() {
+                    match self.sample_pixel(&integrator, x as u32, y as u32, pass) {
+                        Some(xyz) => {
+                            for c in 0..3 {
+                                sum[c] += xyz[c] as f32;
+                            }
+                        }
+                        None => {
+                            discarded.fetch_add(1, Ordering::Relaxed);
+                        }
+                    }
+                }
+                *passes += 1;
+                rows_done.fetch_add(1, Ordering::Relaxed);
+            });
+        let discarded = discarded.into_inner();
+        film.discarded += discarded;
+        let rows = rows_done.into_inner();
+        PassStats {
+            completed: film.row_passes.iter().all(|&p| p > pass),
+            paths: rows * width as u64,
+            discarded,
+        }
+    }
+
+    /// Spectral radiance reaching the observer from (`view_zenith_deg`,
+    /// `view_azimuth_deg`) at each wavelength, W m⁻² sr⁻¹ nm⁻¹ (or per unit
+    /// irradiance with a unit sun), from `samples` paths each.
+    pub fn probe_radiance(
+        &self,
+        view_zenith_deg: f64,
+        view_azimuth_deg: f64,
+        wavelengths_nm: &[f64],
+        samples: u32,
+    ) -> Vec<SpectralEstimate> {
+        let dir = direction_from_az_el(view_azimuth_deg, 90.0 - view_zenith_deg);
+        let integrator = self.integrator();
+        wavelengths_nm
+            .par_chunks(LANES)
+            .enumerate()
+            .flat_map_iter(|(chunk_index, chunk)| {
+                let mut lane_wavelengths = [chunk[0]; LANES];
+                lane_wavelengths[..chunk.len()].copy_from_slice(chunk);
+                let lanes = SpectralLanes::new(
+                    lane_wavelengths,
+                    chunk.len(),
+                    &self.medium,
+                    self.scene.render.unit_sun,
+                );
+                let mut sum = [0.0; LANES];
+                let mut sum2 = [0.0; LANES];
+                for s in 0..samples {
+                    let mut rng =
+                        Rng::for_sample(self.scene.render.seed, u64::from(s), chunk_index as u64);
+                    let l = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
+                    for j in 0..LANES {
+                        let v = if l[j].is_finite() { l[j] } else { 0.0 };
+                        sum[j] += v;
+                        sum2[j] += v * v;
+                    }
+                }
+                let n = f64::from(samples);
+                chunk
+                    .iter()
+                    .enumerate()
+                    .map(|(j, &w)| {
+                        let mean = sum[j] / n;
+                        let var = (sum2[j] / n - mean * mean).max(0.0) * n / (n - 1.0).max(1.0);
+                        SpectralEstimate {
+                            wavelength_nm: w,
+                            radiance: mean,
+                            std_error: (var / n).sqrt(),
+                        }
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect()
+    }
+}

@@ -1,0 +1,229 @@
+//! A progressive render service: one background thread owns the rayon work,
+//! renders sample passes of the current scene into a film, and publishes the
+//! image after each completed pass. Starting a new scene bumps an epoch
+//! counter; the running pass notices between rows and stops, and a frame is
+//! published only if its epoch is still current, so a stale image never
+//! appears after a restart.
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::{Arc, Condvar, Mutex};
+use std::thread::JoinHandle;
+use std::time::{Duration, Instant};
+
+use super::{Film, Renderer};
+use crate::output::RgbImage;
+use crate::scene::Scene;
+
+/// An image published by the service.
+#[derive(Clone, Debug)]
+pub struct Frame {
+    /// The scene generation this frame belongs to.
+    pub epoch: u64,
+    /// Linear Rec.709, Y in cd m⁻².
+    pub image: RgbImage,
+    /// Samples per pixel in `image`.
+    pub spp: u32,
+    pub elapsed: Duration,
+    pub paths_per_second: f64,
+    pub discarded: u64,
+    /// The target sample count was reached.
+    pub finished: bool,
+}
+
+#[derive(Default)]
+struct State {
+    scene: Option<(u64, Scene)>,
+    paused: bool,
+    shutdown: bool,
+    frame: Option<Arc<Frame>>,
+    error: Option<(u64, String)>,
+}
+
+struct Shared {
+    state: Mutex<State>,
+    wake: Condvar,
+    epoch: AtomicU64,
+}
+
+/// Renders the latest scene progressively on a background thread.
+pub struct RenderService {
+    shared: Arc<Shared>,
+    worker: Option<JoinHandle<()>>,
+}
+
+impl Default for RenderService {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl RenderService {
+    pub fn new() -> Self {
+        let shared = Arc::new(Shared {
+            state: Mutex::new(State::default()),
+            wake: Condvar::new(),
+            epoch: AtomicU64::new(0),
+        });
+        let worker_shared = Arc::clone(&shared);
+        let worker = std::thread::Builder::new()
+            .name("skyrender-service".into())
+            .spawn(move || worker_loop(&worker_shared))
+            .expect("spawn render thread");
+        Self {
+            shared,
+            worker: Some(worker),
+        }
+    }
+
+    /// Render `scene` (up to `scene.render.spp` samples per pixel), replacing
+    /// whatever was being rendered. Returns the new epoch.
+    pub fn start(&self, scene: Scene) -> u64 {
+        let mut state = self.shared.state.lock().unwrap();
+        let epoch = self.shared.epoch.fetch_add(1, Ordering::SeqCst) + 1;
+        state.scene = Some((epoch, scene));
+        state.error = None;
+        drop(state);
+        self.shared.wake.notify_all();
+        epoch
+    }
+
+    /// Stop rendering (the last frame stays available).
+    pub fn cancel(&self) {
+        let mut state = self.shared.state.lock().unwrap();
+        self.shared.epoch.fetch_add(1, Ordering::SeqCst);
+        state.scene = None;
+    }
+
+    pub fn set_paused(&self, paused: bool) {
+        self.shared.state.lock().unwrap().paused = paused;
+        self.shared.wake.notify_all();
+    }
+
+    /// The current epoch (the latest `start` or `cancel`).
+    pub fn epoch(&self) -> u64 {
+        self.shared.epoch.load(Ordering::SeqCst)
+    }
+
+    /// The latest published frame of any epoch.
+    pub fn latest(&self) -> Option<Arc<Frame>> {
+        self.shared.state.lock().unwrap().frame.clone()
+    }
+
+    /// An error from building the current scene, if any.
+    pub fn error(&self) -> Option<String> {
+        let state = self.shared.state.lock().unwrap();
+        state
+            .error
+            .as_ref()
+            .filter(|(e, _)| *e == self.epoch())
+            .map(|(_, m)| m.clone())
+    }
+}
+
+impl Drop for RenderService {
+    fn drop(&mut self) {
+        self.shared.state.lock().unwrap().shutdown = true;
+        self.shared.epoch.fetch_add(1, Ordering::SeqCst);
+        self.shared.wake.notify_all();
+        if let Some(worker) = self.worker.take() {
+            let _ = worker.join();
+        }
+    }
+}
+
+fn worker_loop(shared: &Shared) {
+    loop {
+        let (epoch, scene) = {
+            let mut state = shared.state.lock().unwrap();
+            loop {
+                if state.shutdown {
+                    return;
+                }
+                if !state.paused {
+                    if let Some(job) = state.scene.take() {
+                        break job;
+                    }
+                }
+                state = shared.wake.wait(state).unwrap();
+            }
+        };
+        let renderer = match Renderer::new(&scene) {
+            Ok(r) => r,
+            Err(e) => {
+                shared.state.lock().unwrap().error = Some((epoch, e.to_string()));
+                continue;
+            }
+        };
+        let stale = || shared.epoch.load(Ordering::SeqCst) != epoch;
+        let mut film = renderer.new_film();
+        let mut paths = 0u64;
+        let start = Instant::now();
+        let target = scene.render.spp;
+        for pass in 0..target {
+            // Pausing keeps the film; resume continues where it stopped.
+            {
+                let mut state = shared.state.lock().unwrap();
+                while state.paused && !stale() && !state.shutdown {
+                    state = shared.wake.wait(state).unwrap();
+                }
+            }
+            if stale() {
+                break;
+            }
+            let stats = renderer.render_pass(&mut film, pass, &stale);
+            paths += stats.paths;
+            if !stats.completed {
+                break;
+            }
+            publish(shared, epoch, &film, pass + 1, target, start, paths);
+        }
+    }
+}
+
+fn publish(
+    shared: &Shared,
+    epoch: u64,
+    film: &Film,
+    spp: u32,
+    target: u32,
+    start: Instant,
+    paths: u64,
+) {
+    let image = film.to_rgb();
+    let elapsed = start.elapsed();
+    let mut state = shared.state.lock().unwrap();
+    // Checked under the lock that `start` takes: no stale frame after a restart.
+    if shared.epoch.load(Ordering::SeqCst) != epoch {
+        return;
+    }
+    state.frame = Some(Arc::new(Frame {
+        epoch,
+        image,
+        spp,
+        elapsed,
+        paths_per_second: paths as f64 / elapsed.as_secs_f64().max(1e-9),
+        discarded: film.discarded,
+        finished: spp >= target,
+    }));
+}
+
+/// Render a scene to completion on the calling thread's rayon pool, reporting
+/// progress after each pass; returns `None` if `cancel` was set.
+pub fn render_blocking(
+    renderer: &Renderer,
+    cancel: &AtomicBool,
+    mut on_pass: impl FnMut(u32, &Film),
+) -> Option<(Film, u64)> {
+    let mut film = renderer.new_film();
+    let mut paths = 0;
+    let is_cancelled = || cancel.load(Ordering::Relaxed);
+    for pass in 0..renderer.scene.render.spp {
+        let stats = renderer.render_pass(&mut film, pass, &is_cancelled);
+        paths += stats.paths;
+        if !stats.completed {
+            return None;
+        }
+        on_pass(pass + 1, &film);
+    }
+    Some((film, paths))
+}

@@ -1,0 +1,336 @@
+//! The scene description: sun, observer, camera, atmosphere and render
+//! settings, serialisable as TOML, with validation that names the parameter
+//! and its valid range.
+
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use crate::atmosphere::AtmosphereParams;
+use crate::render::IntegratorOptions;
+use crate::spectrum::Observer;
+
+/// Highest observer altitude accepted, m.
+pub const MAX_ALTITUDE_M: f64 = 1e8;
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct Sun {
+    /// Elevation above the observer's astronomical horizon, degrees.
+    pub elevation_deg: f64,
+    /// Azimuth, degrees clockwise from north.
+    pub azimuth_deg: f64,
+}
+
+impl Default for Sun {
+    fn default() -> Self {
+        Self {
+            elevation_deg: 45.0,
+            azimuth_deg: 180.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ObserverPosition {
+    /// Height of the eye above the ground, m.
+    pub altitude_m: f64,
+}
+
+impl Default for ObserverPosition {
+    fn default() -> Self {
+        Self { altitude_m: 2.0 }
+    }
+}
+
+/// Camera projections.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum CameraKind {
+    /// Rectilinear, horizontal field of view `fov_deg`.
+    Perspective,
+    /// Full-sphere latitude–longitude map, 2:1.
+    #[default]
+    Equirect,
+    /// Equidistant angular fisheye looking at the zenith.
+    Fisheye,
+}
+
+impl CameraKind {
+    pub const ALL: [CameraKind; 3] = [Self::Perspective, Self::Equirect, Self::Fisheye];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Self::Perspective => "perspective",
+            Self::Equirect => "equirect",
+            Self::Fisheye => "fisheye",
+        }
+    }
+
+    pub fn parse(name: &str) -> Result<Self, SceneError> {
+        Self::ALL
+            .into_iter()
+            .find(|k| k.name().eq_ignore_ascii_case(name))
+            .ok_or_else(|| {
+                SceneError::new(
+                    "camera",
+                    format!("unknown camera '{name}' (valid: perspective, equirect, fisheye)"),
+                )
+            })
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct CameraParams {
+    pub kind: CameraKind,
+    /// Perspective: horizontal field of view; fisheye: full field of view; degrees.
+    pub fov_deg: f64,
+    /// Azimuth of the view centre, degrees clockwise from north.
+    pub yaw_deg: f64,
+    /// Elevation of the view centre, degrees.
+    pub pitch_deg: f64,
+    /// Rotation about the view axis, degrees (clockwise as seen by the viewer).
+    pub roll_deg: f64,
+}
+
+impl Default for CameraParams {
+    fn default() -> Self {
+        Self {
+            kind: CameraKind::Equirect,
+            fov_deg: 90.0,
+            yaw_deg: 0.0,
+            pitch_deg: 0.0,
+            roll_deg: 0.0,
+        }
+    }
+}
+
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct RenderParams {
+    pub width: u32,
+    pub height: u32,
+    /// Samples (camera paths) per pixel.
+    pub spp: u32,
+    pub seed: u64,
+    /// Top-of-atmosphere irradiance of 1 W m⁻² nm⁻¹ at every wavelength.
+    pub unit_sun: bool,
+    /// Colour-matching functions.
+    pub observer: Observer,
+    /// PNG exposure in EV; `None` = automatic.
+    pub exposure_ev: Option<f64>,
+    pub integrator: IntegratorOptions,
+}
+
+impl Default for RenderParams {
+    fn default() -> Self {
+        Self {
+            width: 512,
+            height: 256,
+            spp: 64,
+            seed: 1,
+            unit_sun: false,
+            observer: Observer::JuddVos,
+            exposure_ev: None,
+            integrator: IntegratorOptions::default(),
+        }
+    }
+}
+
+/// A complete scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct Scene {
+    pub sun: Sun,
+    pub observer: ObserverPosition,
+    pub camera: CameraParams,
+    pub atmosphere: AtmosphereParams,
+    pub render: RenderParams,
+}
+
+/// An invalid parameter.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("invalid {parameter}: {message}")]
+pub struct SceneError {
+    pub parameter: String,
+    pub message: String,
+}
+
+impl SceneError {
+    pub fn new(parameter: &str, message: impl Into<String>) -> Self {
+        Self {
+            parameter: parameter.to_owned(),
+            message: message.into(),
+        }
+    }
+}
+
+fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            parameter,
+            format!("{value} is outside the valid range {lo} to {hi}"),
+        ))
+    }
+}
+
+/// Built-in presets, shipped as TOML in `assets/presets/`.
+pub const PRESETS: [(&str, &str); 6] = [
+    ("midday", include_str!("../assets/presets/midday.toml")),
+    (
+        "afternoon",
+        include_str!("../assets/presets/afternoon.toml"),
+    ),
+    ("sunset", include_str!("../assets/presets/sunset.toml")),
+    ("twilight", include_str!("../assets/presets/twilight.toml")),
+    ("space", include_str!("../assets/presets/space.toml")),
+    ("airliner", include_str!("../assets/presets/airliner.toml")),
+];
+
+impl Scene {
+    /// A built-in preset by name.
+    pub fn preset(name: &str) -> Result<Self, SceneError> {
+        let (_, text) = PRESETS
+            .iter()
+            .find(|(n, _)| n.eq_ignore_ascii_case(name))
+            .ok_or_else(|| {
+                let names: Vec<_> = PRESETS.iter().map(|(n, _)| *n).collect();
+                SceneError::new(
+                    "preset",
+                    format!("unknown preset '{name}' (valid: {})", names.join(", ")),
+                )
+            })?;
+        Self::from_toml(text)
+    }
+
+    pub fn from_toml(text: &str) -> Result<Self, SceneError> {
+        let scene: Self = toml::from_str(text).map_err(|e| {
+            SceneError::new(
+                "scene",
+                e.to_string().lines().next().unwrap_or_default().to_owned(),
+            )
+        })?;
+        scene.validate()?;
+        Ok(scene)
+    }
+
+    pub fn load(path: &Path) -> Result<Self, SceneError> {
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            SceneError::new(
+                "scene file",
+                format!("cannot read '{}': {e}", path.display()),
+            )
+        })?;
+        Self::from_toml(&text).map_err(|e| SceneError {
+            parameter: e.parameter,
+            message: format!("{} (in '{}')", e.message, path.display()),
+        })
+    }
+
+    pub fn to_toml(&self) -> String {
+        toml::to_string_pretty(self).expect("a scene always serialises")
+    }
+
+    /// Check every parameter; the error names the first invalid one and its range.
+    pub fn validate(&self) -> Result<(), SceneError> {
+        check_range("sun elevation (deg)", self.sun.elevation_deg, -90.0, 90.0)?;
+        check_range("sun azimuth (deg)", self.sun.azimuth_deg, -360.0, 720.0)?;
+        check_range(
+            "altitude (m)",
+            self.observer.altitude_m,
+            0.0,
+            MAX_ALTITUDE_M,
+        )?;
+        let fov_max = if self.camera.kind == CameraKind::Perspective {
+            179.0
+        } else {
+            360.0
+        };
+        check_range("fov (deg)", self.camera.fov_deg, 1.0, fov_max)?;
+        check_range("yaw (deg)", self.camera.yaw_deg, -3600.0, 3600.0)?;
+        check_range("pitch (deg)", self.camera.pitch_deg, -90.0, 90.0)?;
+        check_range("roll (deg)", self.camera.roll_deg, -360.0, 360.0)?;
+        let a = &self.atmosphere;
+        check_range("planet radius (m)", a.planet_radius_m, 1e5, 1e8)?;
+        check_range("atmosphere top (m)", a.top_altitude_m, 1_000.0, 200_000.0)?;
+        check_range("ground albedo", a.ground_albedo, 0.0, 1.0)?;
+        if let Some(du) = a.ozone_du {
+            check_range("ozone column (DU)", du, 0.0, 2_000.0)?;
+        }
+        check_range("aerosol amount", a.aerosol_amount, 0.0, 100.0)?;
+        check_range("aerosol g", a.aerosol_g, -0.99, 0.99)?;
+        check_range("aerosol albedo", a.aerosol_albedo, 0.0, 1.0)?;
+        let r = &self.render;
+        if r.width == 0 || r.width > 65_536 {
+            return Err(SceneError::new(
+                "width",
+                format!("{} is outside the valid range 1 to 65536", r.width),
+            ));
+        }
+        if r.height == 0 || r.height > 65_536 {
+            return Err(SceneError::new(
+                "height",
+                format!("{} is outside the valid range 1 to 65536", r.height),
+            ));
+        }
+        if r.spp == 0 {
+            return Err(SceneError::new(
+                "spp",
+                "0 is outside the valid range 1 to 4294967295",
+            ));
+        }
+        if let Some(ev) = r.exposure_ev {
+            check_range("exposure (EV)", ev, -50.0, 50.0)?;
+        }
+        let i = &r.integrator;
+        if !(1..=crate::render::LANES).contains(&i.wavelengths_per_path) {
+            return Err(SceneError::new(
+                "wavelengths per path",
+                format!(
+                    "{} is outside the valid range 1 to {}",
+                    i.wavelengths_per_path,
+                    crate::render::LANES
+                ),
+            ));
+        }
+        check_range(
+            "primary min collisions",
+            i.primary_min_collisions,
+            0.0,
+            1_000.0,
+        )?;
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_loads_and_round_trips() {
+        for (name, _) in PRESETS {
+            let scene = Scene::preset(name).unwrap();
+            let again = Scene::from_toml(&scene.to_toml()).unwrap();
+            assert_eq!(scene, again, "{name}");
+        }
+    }
+
+    #[test]
+    fn errors_name_the_parameter_and_range() {
+        let mut scene = Scene::default();
+        scene.observer.altitude_m = -5.0;
+        let e = scene.validate().unwrap_err();
+        assert_eq!(e.parameter, "altitude (m)");
+        assert!(e.to_string().contains("0 to 100000000"), "{e}");
+        scene.observer.altitude_m = f64::NAN;
+        assert!(scene.validate().is_err());
+        let e = Scene::preset("noon").unwrap_err();
+        assert!(e.to_string().contains("midday"), "{e}");
+        assert!(Scene::from_toml("[sun]\nelevation = 3").is_err());
+    }
+}

@@ -1,0 +1,362 @@
+//! UI tests of the preview app, headless, with `egui_kittest` driving
+//! [`SkyApp::show`]: controls change the scene and restart accumulation,
+//! the export writes the same EXR as the CLI, errors are shown and leave no
+//! file behind. Tiny preview sizes and sample counts keep them fast.
+
+use std::path::Path;
+use std::sync::atomic::AtomicBool;
+use std::time::{Duration, Instant};
+
+use egui::accesskit::Role;
+use egui_kittest::kittest::Queryable as _;
+use egui_kittest::Harness;
+use exr::prelude::{AttributeValue, Text};
+use skyrender::app::{AppState, ExportStatus, SkyApp};
+use skyrender::scene::{CameraKind, Scene};
+
+/// An app on `preset` with an 80×40 preview refining to 2 spp and a 64×32, 2 spp export.
+fn tiny_app(preset: &str) -> SkyApp {
+    let mut state = AppState::new(Scene::preset(preset).unwrap());
+    state.set_preview_scale(0.25);
+    state.set_target_spp(2);
+    state.set_export_width(64);
+    state.set_export_spp(2);
+    SkyApp::with_state(state)
+}
+
+fn harness(app: SkyApp) -> Harness<'static, SkyApp> {
+    Harness::builder()
+        .with_size(egui::vec2(1000.0, 1100.0))
+        .build_ui_state(|ui, app: &mut SkyApp| app.show(ui), app)
+}
+
+/// Step the UI until `done` holds (rendering and saving run on other threads).
+fn step_until(harness: &mut Harness<'_, SkyApp>, what: &str, done: impl Fn(&SkyApp) -> bool) {
+    let start = Instant::now();
+    while !done(harness.state()) {
+        assert!(
+            start.elapsed() < Duration::from_secs(120),
+            "timed out waiting for {what}"
+        );
+        harness.step();
+        std::thread::sleep(Duration::from_millis(2));
+    }
+}
+
+/// Wait for a frame of the service's current epoch to be on screen.
+fn wait_for_current_frame(harness: &mut Harness<'_, SkyApp>) {
+    step_until(harness, "a frame of the current scene", |app| {
+        !app.state().is_dirty() && app.frame().is_some_and(|f| f.epoch == app.service_epoch())
+    });
+}
+
+/// Assert that `change` restarts accumulation: the epoch grows at once and
+/// the next frame on screen belongs to it, starting again from few samples.
+fn assert_restarts(
+    harness: &mut Harness<'_, SkyApp>,
+    what: &str,
+    change: impl FnOnce(&mut Harness<'_, SkyApp>),
+) {
+    wait_for_current_frame(harness);
+    let before = harness.state().service_epoch();
+    change(harness);
+    harness.run_steps(2);
+    let after = harness.state().service_epoch();
+    assert!(after > before, "{what}: epoch {before} -> {after}");
+    wait_for_current_frame(harness);
+    let frame = harness.state().frame().unwrap();
+    assert!(
+        frame.epoch >= after,
+        "{what}: frame of epoch {} shown",
+        frame.epoch
+    );
+}
+
+#[test]
+fn sun_slider_changes_the_scene_and_restarts_accumulation() {
+    let mut harness = harness(tiny_app("midday"));
+    assert_restarts(&mut harness, "sun elevation", |h| {
+        h.get_by_role_and_label(Role::Slider, "Elevation")
+            .set_value_accesskit(10.0);
+    });
+    assert_eq!(harness.state().state().scene().sun.elevation_deg, 10.0);
+    assert_restarts(&mut harness, "sun azimuth", |h| {
+        h.get_by_role_and_label(Role::Slider, "Azimuth")
+            .set_value_accesskit(90.0);
+    });
+    assert_eq!(harness.state().state().scene().sun.azimuth_deg, 90.0);
+    // The frame on screen was rendered for the new sun.
+    let frame = harness.state().frame().unwrap();
+    assert_eq!(frame.image.width, 80);
+    assert!(frame.spp <= 2);
+}
+
+#[test]
+fn toggling_aerosols_and_ozone_restarts_accumulation() {
+    let mut harness = harness(tiny_app("midday"));
+    assert_restarts(&mut harness, "aerosols off", |h| {
+        h.get_by_label("Aerosols").click_accesskit()
+    });
+    assert!(!harness.state().state().scene().atmosphere.aerosols);
+    assert_restarts(&mut harness, "ozone off", |h| {
+        h.get_by_label("Ozone").click_accesskit()
+    });
+    assert!(!harness.state().state().scene().atmosphere.ozone);
+    assert_restarts(&mut harness, "ozone on", |h| {
+        h.get_by_label("Ozone").click_accesskit()
+    });
+    assert!(harness.state().state().scene().atmosphere.ozone);
+    assert_restarts(&mut harness, "altitude quick button", |h| {
+        h.get_by_label("Orbit 400 km").click_accesskit();
+    });
+    assert_eq!(
+        harness.state().state().scene().observer.altitude_m,
+        400_000.0
+    );
+}
+
+#[test]
+fn switching_camera_mode_restarts_and_arrow_keys_turn_the_view() {
+    let mut harness = harness(tiny_app("midday"));
+    assert_restarts(&mut harness, "fisheye", |h| {
+        h.get_by_label("Fisheye").click_accesskit()
+    });
+    let frame = harness.state().frame().unwrap();
+    assert_eq!(
+        frame.image.width, frame.image.height,
+        "the fisheye preview is square"
+    );
+    assert_restarts(&mut harness, "perspective", |h| {
+        h.get_by_label("Perspective").click_accesskit()
+    });
+    let scene = harness.state().state().scene().clone();
+    assert_eq!(scene.camera.kind, CameraKind::Perspective);
+    assert_restarts(&mut harness, "arrow key", |h| {
+        h.key_press(egui::Key::ArrowRight)
+    });
+    let camera = &harness.state().state().scene().camera;
+    assert_eq!(camera.yaw_deg, scene.camera.yaw_deg + 5.0);
+    assert_restarts(&mut harness, "preset button", |h| {
+        h.get_by_label("sunset").click_accesskit()
+    });
+    assert_eq!(
+        harness.state().state().scene(),
+        &Scene::preset("sunset").unwrap()
+    );
+}
+
+#[test]
+fn export_writes_the_same_exr_as_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pano.exr");
+    let mut harness = harness(tiny_app("sunset"));
+    harness.state_mut().start_export(path.clone());
+    step_until(&mut harness, "the export", |app| {
+        !app.state().export_status.is_running()
+    });
+    let status = harness.state().state().export_status.clone();
+    assert!(
+        matches!(&status, ExportStatus::Finished { path: p, .. } if *p == path),
+        "{status:?}"
+    );
+    assert_eq!(harness.state().state().last_error, None);
+
+    let meta = exr::meta::MetaData::read_from_file(&path, false).unwrap();
+    let header = &meta.headers[0];
+    assert_eq!((header.layer_size.0, header.layer_size.1), (64, 32));
+    let scene = harness.state().state().export_scene();
+    let attribute = header
+        .own_attributes
+        .other
+        .get(&Text::from("skyrender:scene"))
+        .or_else(|| {
+            header
+                .shared_attributes
+                .other
+                .get(&Text::from("skyrender:scene"))
+        })
+        .expect("skyrender:scene attribute");
+    let AttributeValue::Text(text) = attribute else {
+        panic!("not text: {attribute:?}")
+    };
+    assert_eq!(
+        Scene::from_toml(std::str::from_utf8(text.bytes()).unwrap()).unwrap(),
+        scene
+    );
+
+    // `skyrender render --preset sunset --camera equirect --width 64 --height 32 --spp 2`.
+    let args = skyrender::cli::SceneArgs {
+        preset: Some("sunset".into()),
+        camera: Some("equirect".into()),
+        width: Some(64),
+        height: Some(32),
+        spp: Some(2),
+        ..Default::default()
+    };
+    let cli_path = dir.path().join("cli.exr");
+    skyrender::cli::render_to_file(
+        &args.build().unwrap(),
+        &cli_path,
+        &AtomicBool::new(false),
+        |_, _| {},
+    )
+    .unwrap();
+    assert!(
+        std::fs::read(&path).unwrap() == std::fs::read(&cli_path).unwrap(),
+        "app and CLI files differ"
+    );
+}
+
+/// Files in `dir`, sorted.
+fn entries(dir: &Path) -> Vec<String> {
+    let mut names: Vec<_> = std::fs::read_dir(dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    names
+}
+
+#[test]
+fn invalid_export_paths_show_an_error_and_leave_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(tiny_app("midday"));
+    for (path, expect) in [
+        (dir.path().join("missing").join("pano.exr"), "cannot write"),
+        (dir.path().join("pano.png"), ".exr"),
+        (dir.path().join("pano"), "extension"),
+        (dir.path().to_path_buf(), ""),
+    ] {
+        harness.state_mut().state_mut().last_error = None;
+        harness.state_mut().start_export(path.clone());
+        step_until(&mut harness, "the export to fail", |app| {
+            !app.state().export_status.is_running()
+        });
+        let state = harness.state().state();
+        let ExportStatus::Failed(message) = &state.export_status else {
+            panic!("{}: {:?}", path.display(), state.export_status)
+        };
+        assert!(message.contains(expect), "{message}");
+        assert_eq!(state.last_error.as_deref(), Some(message.as_str()));
+        // The error is on screen.
+        harness.run_steps(2);
+        let _ = harness.get_by_label_contains("Export failed");
+    }
+    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+}
+
+#[test]
+fn cancelled_export_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("pano.exr");
+    let mut app = tiny_app("midday");
+    app.state_mut().set_export_width(512);
+    app.state_mut().set_export_spp(4096);
+    let mut harness = harness(app);
+    harness.state_mut().start_export(path.clone());
+    harness.run_steps(2);
+    harness.get_by_label("Cancel").click_accesskit();
+    step_until(&mut harness, "the export to stop", |app| {
+        !app.state().export_status.is_running()
+    });
+    assert_eq!(
+        harness.state().state().export_status,
+        ExportStatus::Cancelled
+    );
+    assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
+}
+
+#[test]
+fn view_and_scene_files_round_trip() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(tiny_app("twilight"));
+    wait_for_current_frame(&mut harness);
+    for name in ["view.png", "view.exr", "scene.toml"] {
+        let path = dir.path().join(name);
+        if name.ends_with("toml") {
+            harness.state_mut().save_scene_to(path);
+        } else {
+            harness.state_mut().save_view_to(path);
+        }
+    }
+    step_until(&mut harness, "the saves", |app| !app.busy());
+    assert_eq!(harness.state().state().last_error, None);
+    assert_eq!(entries(dir.path()), ["scene.toml", "view.exr", "view.png"]);
+    let png = image::open(dir.path().join("view.png")).unwrap();
+    assert_eq!((png.width(), png.height()), (80, 40));
+    exr::meta::MetaData::read_from_file(dir.path().join("view.exr"), false).unwrap();
+
+    harness.state_mut().state_mut().load_preset("midday");
+    wait_for_current_frame(&mut harness);
+    harness
+        .state_mut()
+        .load_scene_from(dir.path().join("scene.toml"));
+    step_until(&mut harness, "the load", |app| !app.busy());
+    assert_eq!(
+        harness.state().state().scene(),
+        &Scene::preset("twilight").unwrap()
+    );
+    harness
+        .state_mut()
+        .load_scene_from(dir.path().join("nothing.toml"));
+    step_until(&mut harness, "the failed load", |app| !app.busy());
+    assert!(harness.state().state().last_error.is_some());
+    assert_eq!(
+        harness.state().state().scene(),
+        &Scene::preset("twilight").unwrap()
+    );
+}
+
+/// Time from a slider change to the first frame of the new scene on screen
+/// at the default preview size (320×160), as the app measures it. Run alone
+/// for a clean figure: `cargo test --release --test app_ui latency -- --nocapture`.
+#[test]
+fn slider_change_latency_at_the_default_preview_size() {
+    let mut harness = harness(SkyApp::new(Scene::preset("midday").unwrap()));
+    wait_for_current_frame(&mut harness);
+    let mut latencies = Vec::new();
+    for i in 0..8 {
+        harness
+            .state_mut()
+            .state_mut()
+            .set_sun_elevation(20.0 + f64::from(i));
+        harness.step();
+        let measured = harness.state().latency().count;
+        step_until(&mut harness, "the new frame", |app| {
+            app.latency().count > measured
+        });
+        latencies.push(harness.state().latency().last.unwrap());
+    }
+    latencies.sort();
+    let ms = |d: Duration| d.as_secs_f64() * 1e3;
+    eprintln!(
+        "slider change -> first frame at 320x160: median {:.0} ms, min {:.0} ms, max {:.0} ms",
+        ms(latencies[latencies.len() / 2]),
+        ms(latencies[0]),
+        ms(latencies[latencies.len() - 1]),
+    );
+    assert!(latencies[latencies.len() / 2] < Duration::from_secs(10));
+}
+
+/// The whole window, rendered by wgpu (lavapipe where there is no GPU), at
+/// 1 spp so the sky is deterministic; the status bar (timings) is masked.
+#[test]
+fn window_snapshot() {
+    let mut app = tiny_app("sunset");
+    app.state_mut().set_target_spp(1);
+    app.state_mut().set_preview_scale(1.0);
+    let mut harness = Harness::builder()
+        .with_size(egui::vec2(960.0, 720.0))
+        .build_ui_state(|ui, app: &mut SkyApp| app.show(ui), app);
+    step_until(&mut harness, "the 1 spp frame", |app| {
+        app.frame()
+            .is_some_and(|f| f.finished && f.epoch == app.service_epoch())
+    });
+    harness.run_steps(3);
+    let status = harness.get_by_label_contains("spp").rect();
+    harness.mask(egui::Rect::from_x_y_ranges(
+        0.0..=960.0,
+        (status.top() - 4.0)..=720.0,
+    ));
+    harness.snapshot("app_sunset");
+}
