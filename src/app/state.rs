@@ -295,12 +295,13 @@ impl AppState {
         }
     }
 
-    /// Assign `value` to the field `f` selects if it is finite and differs;
-    /// marks the state dirty when it changes.
-    fn update(&mut self, value: f64, f: impl FnOnce(&mut Scene) -> &mut f64) {
+    /// Assign `value`, clamped to `lo..=hi`, to the field `f` selects;
+    /// non-finite values are ignored. Marks the state dirty when it changes.
+    fn update(&mut self, value: f64, (lo, hi): (f64, f64), f: impl FnOnce(&mut Scene) -> &mut f64) {
         if !value.is_finite() {
             return;
         }
+        let value = value.clamp(lo, hi);
         let field = f(&mut self.scene);
         if *field != value {
             *field = value;
@@ -310,8 +311,7 @@ impl AppState {
 
     /// Sun elevation, degrees, clamped to [`SUN_ELEVATION_RANGE`].
     pub fn set_sun_elevation(&mut self, deg: f64) {
-        let (lo, hi) = SUN_ELEVATION_RANGE;
-        self.update(deg.clamp(lo, hi), |s| &mut s.sun.elevation_deg);
+        self.update(deg, SUN_ELEVATION_RANGE, |s| &mut s.sun.elevation_deg);
     }
 
     /// Sun azimuth, degrees clockwise from north, wrapped to 0–360.
@@ -321,14 +321,12 @@ impl AppState {
         } else {
             deg.rem_euclid(360.0)
         };
-        self.update(wrapped, |s| &mut s.sun.azimuth_deg);
+        self.update(wrapped, (0.0, 360.0), |s| &mut s.sun.azimuth_deg);
     }
 
     /// Observer altitude, m, clamped to 0–[`MAX_APP_ALTITUDE_M`].
     pub fn set_altitude_m(&mut self, m: f64) {
-        self.update(m.clamp(0.0, MAX_APP_ALTITUDE_M), |s| {
-            &mut s.observer.altitude_m
-        });
+        self.update(m, (0.0, MAX_APP_ALTITUDE_M), |s| &mut s.observer.altitude_m);
     }
 
     /// Switch the camera projection. The field of view is brought into the
@@ -356,19 +354,19 @@ impl AppState {
     /// Field of view, degrees, clamped to the current mode's range (the
     /// equirectangular map has none and ignores it).
     pub fn set_fov(&mut self, deg: f64) {
-        let (lo, hi) = match self.scene.camera.kind {
+        let range = match self.scene.camera.kind {
             CameraKind::Fisheye => FISHEYE_FOV_RANGE,
             CameraKind::Perspective | CameraKind::Equirect => PERSPECTIVE_FOV_RANGE,
         };
-        self.update(deg.clamp(lo, hi), |s| &mut s.camera.fov_deg);
+        self.update(deg, range, |s| &mut s.camera.fov_deg);
     }
 
     /// View direction: yaw (degrees clockwise from north, wrapped to
     /// −180–180) and pitch (clamped to ±90).
     pub fn set_view(&mut self, yaw_deg: f64, pitch_deg: f64) {
         let yaw = (yaw_deg + 180.0).rem_euclid(360.0) - 180.0;
-        self.update(yaw, |s| &mut s.camera.yaw_deg);
-        self.update(pitch_deg.clamp(-90.0, 90.0), |s| &mut s.camera.pitch_deg);
+        self.update(yaw, (-180.0, 180.0), |s| &mut s.camera.yaw_deg);
+        self.update(pitch_deg, (-90.0, 90.0), |s| &mut s.camera.pitch_deg);
     }
 
     /// Turn the view by the given angles, degrees.
@@ -387,8 +385,9 @@ impl AppState {
 
     /// Aerosol amount (multiple of the standard profile), clamped to [`AEROSOL_AMOUNT_RANGE`].
     pub fn set_aerosol_amount(&mut self, amount: f64) {
-        let (lo, hi) = AEROSOL_AMOUNT_RANGE;
-        self.update(amount.clamp(lo, hi), |s| &mut s.atmosphere.aerosol_amount);
+        self.update(amount, AEROSOL_AMOUNT_RANGE, |s| {
+            &mut s.atmosphere.aerosol_amount
+        });
     }
 
     /// Ozone on or off.
@@ -423,7 +422,7 @@ impl AppState {
 
     /// Lambertian ground albedo, clamped to 0–1.
     pub fn set_ground_albedo(&mut self, albedo: f64) {
-        self.update(albedo.clamp(0.0, 1.0), |s| &mut s.atmosphere.ground_albedo);
+        self.update(albedo, (0.0, 1.0), |s| &mut s.atmosphere.ground_albedo);
     }
 
     /// Preview resolution scale, clamped to [`PREVIEW_SCALE_RANGE`].

@@ -25,15 +25,40 @@ use crate::render::service::{Frame, RenderService};
 use crate::render::{direction_from_az_el, Camera};
 use crate::scene::{CameraKind, Scene, PRESETS};
 
-/// While the latest restart has not produced its first frame yet, further
-/// scene changes wait this long before restarting again, so that dragging a
-/// slider shows a new low-sample image at the rate passes complete instead
-/// of cancelling every pass before it finishes.
+/// While the latest restart has not produced its first frame (usually a
+/// draft) yet, further scene changes wait up to this long before restarting
+/// again, so that dragging a slider shows a new image at the rate drafts
+/// complete instead of cancelling every one before it finishes.
 const RESTART_COALESCE: Duration = Duration::from_millis(150);
+/// A scene change first renders a one-sample draft at a reduced size when a
+/// full-size pass would take longer than this at the measured speed.
+const DRAFT_SECONDS: f64 = 0.04;
+/// The draft has at least this many pixels.
+const MIN_DRAFT_PIXELS: f64 = 1024.0;
+/// Speed assumed before the first frame is measured, paths per second.
+const INITIAL_PATHS_PER_SECOND: f64 = 150_000.0;
 /// How often the UI polls the render service while it renders.
 const RENDER_POLL: Duration = Duration::from_millis(15);
 /// How often the UI refreshes while an export or a file task runs.
 const TASK_POLL: Duration = Duration::from_millis(100);
+/// The camera mode buttons: mode, label, tooltip.
+const CAMERA_MODES: [(CameraKind, &str, &str); 3] = [
+    (
+        CameraKind::Fisheye,
+        "Fisheye",
+        "All-sky view looking straight up, north at the top",
+    ),
+    (
+        CameraKind::Equirect,
+        "Equirect",
+        "Whole sphere as a 2:1 latitude–longitude map, north in the middle",
+    ),
+    (
+        CameraKind::Perspective,
+        "Perspective",
+        "Ordinary camera; drag the view or use the arrow keys to look around",
+    ),
+];
 /// Arrow-key step of the view direction, degrees (shift: a fifth of it).
 const ARROW_STEP_DEG: f64 = 5.0;
 
@@ -101,10 +126,20 @@ pub struct SkyApp {
     started_scene: Scene,
     /// When the current epoch started, until its first frame is shown.
     pending_since: Option<Instant>,
+    /// When the latest change happened, until its first full-size frame is shown.
+    full_pending_since: Option<Instant>,
+    /// The full-size scene to render once the draft on its way is shown.
+    queued_full: Option<Scene>,
+    /// Measured rendering speed (smoothed), paths per second.
+    paths_per_second: f64,
     latency: LatencyStats,
+    full_latency: LatencyStats,
     applied_paused: bool,
+    /// The epoch whose render error was last reported (each is shown once).
+    reported_error_epoch: u64,
     /// The frame on screen and the preview scene it was rendered from.
     frame: Option<Arc<Frame>>,
+    frame_is_draft: bool,
     frame_scene: Scene,
     texture: Option<egui::TextureHandle>,
     /// Display settings the texture was made with; `None` forces an upload.
@@ -136,9 +171,15 @@ impl SkyApp {
             frame_scene: started_scene.clone(),
             started_scene,
             pending_since: None,
+            full_pending_since: None,
+            queued_full: None,
+            paths_per_second: INITIAL_PATHS_PER_SECOND,
             latency: LatencyStats::default(),
+            full_latency: LatencyStats::default(),
             applied_paused: false,
+            reported_error_epoch: 0,
             frame: None,
+            frame_is_draft: false,
             texture: None,
             uploaded: None,
             export_job: None,
@@ -189,9 +230,15 @@ impl SkyApp {
         self.frame.as_ref()
     }
 
-    /// Scene-change-to-first-frame latencies measured so far.
+    /// Time from each scene change to its first frame on screen (a quick
+    /// draft where the full size would be slow).
     pub fn latency(&self) -> LatencyStats {
         self.latency
+    }
+
+    /// Time from each scene change to its first full-size frame on screen.
+    pub fn full_latency(&self) -> LatencyStats {
+        self.full_latency
     }
 
     /// An export, save, load or dialog is still running.
@@ -397,13 +444,13 @@ impl SkyApp {
             .is_some_and(|since| now.duration_since(since) < RESTART_COALESCE);
         if self.state.is_dirty() && (!waiting || paused || self.frame.is_none()) {
             self.state.take_dirty();
-            let scene = self.state.preview_scene();
-            self.started_epoch = self.service.start(scene.clone());
-            self.started_scene = scene;
-            self.pending_since = Some(now);
+            self.start_render(now);
         }
-        if let Some(error) = self.service.error() {
-            self.state.last_error = Some(error);
+        if self.reported_error_epoch != self.started_epoch {
+            if let Some(error) = self.service.error() {
+                self.state.last_error = Some(error);
+                self.reported_error_epoch = self.started_epoch;
+            }
         }
         if let Some(frame) = self.service.latest() {
             let is_new = frame.epoch == self.started_epoch
@@ -412,17 +459,7 @@ impl SkyApp {
                     .as_ref()
                     .is_none_or(|f| f.epoch != frame.epoch || f.spp != frame.spp);
             if is_new {
-                if let Some(since) = self.pending_since.take() {
-                    self.latency.record(now.duration_since(since));
-                }
-                if self.state.display.auto_exposure {
-                    let (lo, hi) = EXPOSURE_RANGE;
-                    self.state.display.exposure_ev =
-                        crate::output::auto_exposure_ev(&frame.image).clamp(lo, hi);
-                }
-                self.frame = Some(frame);
-                self.frame_scene = self.started_scene.clone();
-                self.uploaded = None;
+                self.take_frame(frame, now);
             }
         }
         if let Some(frame) = &self.frame {
@@ -437,7 +474,7 @@ impl SkyApp {
                             "sky-preview",
                             image,
                             egui::TextureOptions::LINEAR,
-                        ))
+                        ));
                     }
                 }
                 self.uploaded = Some(self.state.display.clone());
@@ -451,6 +488,62 @@ impl SkyApp {
         }
     }
 
+    /// Start rendering the current preview scene. If one pass of it would
+    /// take longer than [`DRAFT_SECONDS`] at the measured speed, a quick
+    /// one-sample draft at a reduced size goes first, and the full-size
+    /// render starts as soon as the draft is on screen.
+    fn start_render(&mut self, now: Instant) {
+        let full = self.state.preview_scene();
+        let (width, height) = (f64::from(full.render.width), f64::from(full.render.height));
+        let budget = (self.paths_per_second * DRAFT_SECONDS).max(MIN_DRAFT_PIXELS);
+        let scene = if self.state.render().paused || width * height <= budget {
+            self.queued_full = None;
+            full
+        } else {
+            let divisor = (width * height / budget).sqrt().max(2.0);
+            let mut draft = full.clone();
+            draft.render.width = (width / divisor).round().max(1.0) as u32;
+            draft.render.height = (height / divisor).round().max(1.0) as u32;
+            draft.render.spp = 1;
+            self.queued_full = Some(full);
+            draft
+        };
+        self.started_epoch = self.service.start(scene.clone());
+        self.started_scene = scene;
+        self.pending_since = Some(now);
+        self.full_pending_since = Some(now);
+    }
+
+    /// Show a newly published frame of the current epoch; after a draft,
+    /// start the full-size render.
+    fn take_frame(&mut self, frame: Arc<Frame>, now: Instant) {
+        if let Some(since) = self.pending_since.take() {
+            self.latency.record(now.duration_since(since));
+        }
+        let is_draft = self.queued_full.is_some();
+        if !is_draft {
+            if let Some(since) = self.full_pending_since.take() {
+                self.full_latency.record(now.duration_since(since));
+            }
+        }
+        if frame.paths_per_second.is_finite() && frame.paths_per_second > 0.0 {
+            self.paths_per_second = 0.5 * (self.paths_per_second + frame.paths_per_second);
+        }
+        if self.state.display.auto_exposure {
+            let (lo, hi) = EXPOSURE_RANGE;
+            self.state.display.exposure_ev =
+                crate::output::auto_exposure_ev(&frame.image).clamp(lo, hi);
+        }
+        self.frame = Some(frame);
+        self.frame_is_draft = is_draft;
+        self.frame_scene = self.started_scene.clone();
+        self.uploaded = None;
+        if let Some(full) = self.queued_full.take() {
+            self.started_epoch = self.service.start(full.clone());
+            self.started_scene = full;
+        }
+    }
+
     /// The preview is still refining (or waiting for a pending restart).
     fn is_rendering(&self) -> bool {
         if self.state.render().paused {
@@ -458,6 +551,7 @@ impl SkyApp {
         }
         self.state.is_dirty()
             || self.pending_since.is_some()
+            || self.queued_full.is_some()
             || self
                 .frame
                 .as_ref()
@@ -486,15 +580,17 @@ impl SkyApp {
         let shared = Arc::clone(&plan.result);
         let tx = self.tasks_tx.clone();
         let wake = self.wake();
-        if let Some(l) = self.latency.last {
-            eprintln!(
-                "skyrender: preview {}x{}: first frame {:.0} ms after start; {} spp on screen",
-                self.frame_scene.render.width,
-                self.frame_scene.render.height,
-                l.as_secs_f64() * 1e3,
-                self.frame.as_ref().map_or(0, |f| f.spp)
-            );
-        }
+        let ms = |l: Option<Duration>| l.map_or(f64::NAN, |d| d.as_secs_f64() * 1e3);
+        eprintln!(
+            "skyrender: screenshot at {:.1} s: {} spp at {}x{}; first frame {:.0} ms, \
+             first full-size frame {:.0} ms after start",
+            elapsed.as_secs_f64(),
+            self.frame.as_ref().map_or(0, |f| f.spp),
+            self.frame_scene.render.width,
+            self.frame_scene.render.height,
+            ms(self.latency.last),
+            ms(self.full_latency.last),
+        );
         self.tasks_running += 1;
         ctx.request_screenshot(move |image| {
             // Encode off the thread that delivers the image.
@@ -545,10 +641,7 @@ impl SkyApp {
 
     fn status_bar(&mut self, ui: &mut egui::Ui) {
         ui.horizontal_wrapped(|ui| {
-            let (w, h) = (
-                self.started_scene.render.width,
-                self.started_scene.render.height,
-            );
+            let (w, h) = self.state.preview_size();
             let state = if self.state.render().paused {
                 "paused"
             } else if self.is_rendering() {
@@ -559,8 +652,15 @@ impl SkyApp {
             ui.label(RichText::new(state).strong());
             match &self.frame {
                 Some(f) => {
-                    ui.label(format!("{} / {} spp", f.spp, self.started_scene.render.spp))
-                        .on_hover_text("Samples per pixel accumulated / target");
+                    let spp = if self.frame_is_draft {
+                        format!("draft {}×{}", f.image.width, f.image.height)
+                    } else {
+                        format!("{} / {} spp", f.spp, self.state.render().target_spp)
+                    };
+                    ui.label(spp).on_hover_text(
+                        "Samples per pixel accumulated / target (a draft is a quick \
+                         low-resolution first look after a change)",
+                    );
                     ui.label(format!("{:.2} M paths/s", f.paths_per_second / 1e6))
                         .on_hover_text("Camera paths traced per second");
                     ui.label(format!("{:.1} s", f.elapsed.as_secs_f64()))
@@ -574,13 +674,20 @@ impl SkyApp {
             }
             ui.label(format!("{w}×{h} px"))
                 .on_hover_text("Preview resolution");
-            if let Some(l) = self.latency.last {
-                ui.label(format!("first frame {:.0} ms", l.as_secs_f64() * 1e3))
-                    .on_hover_text("Time from the latest change to its first frame on screen");
+            if let (Some(first), Some(full)) = (self.latency.last, self.full_latency.last) {
+                ui.label(format!(
+                    "first frame {:.0} ms, full size {:.0} ms",
+                    first.as_secs_f64() * 1e3,
+                    full.as_secs_f64() * 1e3
+                ))
+                .on_hover_text(
+                    "Time from the latest change to its first frame on screen \
+                     (draft, then full size)",
+                );
             }
             if let Some(error) = self.state.last_error.clone() {
                 ui.separator();
-                ui.colored_label(Color32::from_rgb(255, 110, 100), format!("⚠ {error}"));
+                ui.colored_label(Color32::from_rgb(255, 110, 100), format!("Error: {error}"));
                 if ui
                     .small_button("Dismiss")
                     .on_hover_text("Clear this error")
@@ -675,153 +782,202 @@ impl SkyApp {
     }
 
     fn observer_group(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Observer").default_open(true).show(ui, |ui| {
-            let altitude = self.state.scene().observer.altitude_m;
-            let mut position = altitude_to_slider(altitude);
-            let response = ui
-                .add(
-                    Slider::new(&mut position, 0.0..=altitude_to_slider(MAX_APP_ALTITUDE_M))
-                        .text("Altitude")
-                        .custom_formatter(|p, _| format_altitude(slider_to_altitude(p)))
-                        .custom_parser(|s| parse_altitude(s).map(altitude_to_slider)),
-                )
-                .on_hover_text("Height of the eye above the ground (logarithmic scale, 0 m to 1000 km); type e.g. \"10 km\"");
-            if response.changed() {
-                self.state.set_altitude_m(slider_to_altitude(position));
-            }
-            ui.horizontal(|ui| {
-                for (label, m, tip) in [
-                    ("Ground", GROUND_ALTITUDE_M, "Standing on the ground (eye height 2 m)"),
-                    ("Airliner 10 km", 10_000.0, "Cruising altitude of an airliner"),
-                    ("Orbit 400 km", 400_000.0, "Low Earth orbit, like the ISS"),
-                ] {
-                    if ui.selectable_label(altitude == m, label).on_hover_text(tip).clicked() {
-                        self.state.set_altitude_m(m);
-                    }
+        egui::CollapsingHeader::new("Observer")
+            .default_open(true)
+            .show(ui, |ui| {
+                let altitude = self.state.scene().observer.altitude_m;
+                let mut position = altitude_to_slider(altitude);
+                let response = ui
+                    .add(
+                        Slider::new(&mut position, 0.0..=altitude_to_slider(MAX_APP_ALTITUDE_M))
+                            .text("Altitude")
+                            .custom_formatter(|p, _| format_altitude(slider_to_altitude(p)))
+                            .custom_parser(|s| parse_altitude(s).map(altitude_to_slider)),
+                    )
+                    .on_hover_text(
+                        "Height of the eye above the ground (logarithmic scale, 0 m to 1000 km); \
+                     type e.g. \"10 km\"",
+                    );
+                if response.changed() {
+                    self.state.set_altitude_m(slider_to_altitude(position));
                 }
-            });
-        });
-    }
-
-    fn atmosphere_group(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Atmosphere").default_open(true).show(ui, |ui| {
-            let a = self.state.atmosphere().clone();
-            let mut aerosols = a.aerosols;
-            if ui
-                .checkbox(&mut aerosols, "Aerosols")
-                .on_hover_text("Haze particles (Elterman's profile): whiter sky near the horizon, glow around the sun")
-                .changed()
-            {
-                self.state.set_aerosols(aerosols);
-            }
-            ui.add_enabled_ui(aerosols, |ui| {
-                if let Some(v) = slider(
-                    ui,
-                    a.aerosol_amount,
-                    AEROSOL_AMOUNT_RANGE,
-                    "Aerosol amount",
-                    "×",
-                    "Multiple of the standard aerosol profile (1 = clear standard day)",
-                ) {
-                    self.state.set_aerosol_amount(v);
-                }
-            });
-            let mut ozone = a.ozone;
-            if ui
-                .checkbox(&mut ozone, "Ozone")
-                .on_hover_text("Ozone absorption (Chappuis band): keeps the twilight zenith blue")
-                .changed()
-            {
-                self.state.set_ozone(ozone);
-            }
-            ui.add_enabled_ui(ozone, |ui| {
                 ui.horizontal(|ui| {
-                    if let Some(v) = slider(
-                        ui,
-                        self.state.ozone_column_du(),
-                        OZONE_DU_RANGE,
-                        "Ozone column",
-                        " DU",
-                        "Total ozone column in Dobson units (about 300 is typical)",
-                    ) {
-                        self.state.set_ozone_du(Some(v));
-                    }
-                    if ui
-                        .add_enabled(a.ozone_du.is_some(), egui::Button::new("Profile").small())
-                        .on_hover_text("Use the model profile's own column")
-                        .clicked()
-                    {
-                        self.state.set_ozone_du(None);
+                    for (label, m, tip) in [
+                        (
+                            "Ground",
+                            GROUND_ALTITUDE_M,
+                            "Standing on the ground (eye height 2 m)",
+                        ),
+                        (
+                            "Airliner 10 km",
+                            10_000.0,
+                            "Cruising altitude of an airliner",
+                        ),
+                        ("Orbit 400 km", 400_000.0, "Low Earth orbit, like the ISS"),
+                    ] {
+                        if ui
+                            .selectable_label(altitude == m, label)
+                            .on_hover_text(tip)
+                            .clicked()
+                        {
+                            self.state.set_altitude_m(m);
+                        }
                     }
                 });
             });
-            if let Some(v) = slider(
-                ui,
-                a.ground_albedo,
-                (0.0, 1.0),
-                "Ground albedo",
-                "",
-                "Fraction of light the (Lambertian) ground reflects: 0.1 forest or sea, 0.3 average, 0.8 snow",
-            ) {
-                self.state.set_ground_albedo(v);
-            }
-        });
+    }
+
+    fn atmosphere_group(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Atmosphere")
+            .default_open(true)
+            .show(ui, |ui| {
+                let a = self.state.atmosphere().clone();
+                let mut aerosols = a.aerosols;
+                if ui
+                    .checkbox(&mut aerosols, "Aerosols")
+                    .on_hover_text(
+                        "Haze particles (Elterman's profile): whiter sky near the horizon, \
+                     glow around the sun",
+                    )
+                    .changed()
+                {
+                    self.state.set_aerosols(aerosols);
+                }
+                ui.add_enabled_ui(aerosols, |ui| {
+                    if let Some(v) = slider(
+                        ui,
+                        a.aerosol_amount,
+                        AEROSOL_AMOUNT_RANGE,
+                        "Aerosol amount",
+                        "×",
+                        "Multiple of the standard aerosol profile (1 = clear standard day)",
+                    ) {
+                        self.state.set_aerosol_amount(v);
+                    }
+                });
+                let mut ozone = a.ozone;
+                if ui
+                    .checkbox(&mut ozone, "Ozone")
+                    .on_hover_text(
+                        "Ozone absorption (Chappuis band): keeps the twilight zenith blue",
+                    )
+                    .changed()
+                {
+                    self.state.set_ozone(ozone);
+                }
+                ui.add_enabled_ui(ozone, |ui| {
+                    ui.horizontal(|ui| {
+                        if let Some(v) = slider(
+                            ui,
+                            self.state.ozone_column_du(),
+                            OZONE_DU_RANGE,
+                            "Ozone column",
+                            " DU",
+                            "Total ozone column in Dobson units (about 300 is typical)",
+                        ) {
+                            self.state.set_ozone_du(Some(v));
+                        }
+                        if ui
+                            .add_enabled(a.ozone_du.is_some(), egui::Button::new("Profile").small())
+                            .on_hover_text("Use the model profile's own column")
+                            .clicked()
+                        {
+                            self.state.set_ozone_du(None);
+                        }
+                    });
+                });
+                if let Some(v) = slider(
+                    ui,
+                    a.ground_albedo,
+                    (0.0, 1.0),
+                    "Ground albedo",
+                    "",
+                    "Fraction of light the (Lambertian) ground reflects: \
+                 0.1 forest or sea, 0.3 average, 0.8 snow",
+                ) {
+                    self.state.set_ground_albedo(v);
+                }
+            });
     }
 
     fn camera_group(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Camera").default_open(true).show(ui, |ui| {
-            let camera = self.state.scene().camera.clone();
-            ui.horizontal(|ui| {
-                for (kind, label, tip) in [
-                    (CameraKind::Fisheye, "Fisheye", "All-sky view looking straight up, north at the top"),
-                    (CameraKind::Equirect, "Equirect", "Whole sphere as a 2:1 latitude–longitude map, north in the middle"),
-                    (CameraKind::Perspective, "Perspective", "Ordinary camera; drag the view or use the arrow keys to look around"),
-                ] {
-                    if ui.selectable_label(camera.kind == kind, label).on_hover_text(tip).clicked() {
-                        self.state.set_camera_kind(kind);
+        egui::CollapsingHeader::new("Camera")
+            .default_open(true)
+            .show(ui, |ui| {
+                let camera = self.state.scene().camera.clone();
+                ui.horizontal(|ui| {
+                    for (kind, label, tip) in CAMERA_MODES {
+                        if ui
+                            .selectable_label(camera.kind == kind, label)
+                            .on_hover_text(tip)
+                            .clicked()
+                        {
+                            self.state.set_camera_kind(kind);
+                        }
+                    }
+                });
+                match camera.kind {
+                    CameraKind::Perspective => {
+                        if let Some(v) = slider(
+                            ui,
+                            camera.fov_deg,
+                            PERSPECTIVE_FOV_RANGE,
+                            "Field of view",
+                            "°",
+                            "Horizontal field of view, degrees",
+                        ) {
+                            self.state.set_fov(v);
+                        }
+                        if let Some(v) = slider(
+                            ui,
+                            camera.yaw_deg,
+                            (-180.0, 180.0),
+                            "Yaw",
+                            "°",
+                            "View direction, degrees clockwise from north",
+                        ) {
+                            self.state.set_view(v, camera.pitch_deg);
+                        }
+                        if let Some(v) = slider(
+                            ui,
+                            camera.pitch_deg,
+                            (-90.0, 90.0),
+                            "Pitch",
+                            "°",
+                            "View elevation above the horizon, degrees",
+                        ) {
+                            self.state.set_view(camera.yaw_deg, v);
+                        }
+                        ui.weak("Drag the view or use the arrow keys to look around.");
+                    }
+                    CameraKind::Fisheye => {
+                        if let Some(v) = slider(
+                            ui,
+                            camera.fov_deg,
+                            FISHEYE_FOV_RANGE,
+                            "Field of view",
+                            "°",
+                            "Full field of view of the fisheye circle, degrees \
+                         (180 = down to the horizon)",
+                        ) {
+                            self.state.set_fov(v);
+                        }
+                        if let Some(v) = slider(
+                            ui,
+                            camera.yaw_deg,
+                            (-180.0, 180.0),
+                            "Rotation",
+                            "°",
+                            "Turns the all-sky image, degrees",
+                        ) {
+                            self.state.set_view(v, camera.pitch_deg);
+                        }
+                    }
+                    CameraKind::Equirect => {
+                        ui.weak("The map is geographic: north in the middle, east to the right.");
                     }
                 }
             });
-            match camera.kind {
-                CameraKind::Perspective => {
-                    if let Some(v) = slider(
-                        ui,
-                        camera.fov_deg,
-                        PERSPECTIVE_FOV_RANGE,
-                        "Field of view",
-                        "°",
-                        "Horizontal field of view, degrees",
-                    ) {
-                        self.state.set_fov(v);
-                    }
-                    if let Some(v) = slider(ui, camera.yaw_deg, (-180.0, 180.0), "Yaw", "°", "View direction, degrees clockwise from north") {
-                        self.state.set_view(v, camera.pitch_deg);
-                    }
-                    if let Some(v) = slider(ui, camera.pitch_deg, (-90.0, 90.0), "Pitch", "°", "View elevation above the horizon, degrees") {
-                        self.state.set_view(camera.yaw_deg, v);
-                    }
-                    ui.weak("Drag the view or use the arrow keys to look around.");
-                }
-                CameraKind::Fisheye => {
-                    if let Some(v) = slider(
-                        ui,
-                        camera.fov_deg,
-                        FISHEYE_FOV_RANGE,
-                        "Field of view",
-                        "°",
-                        "Full field of view of the fisheye circle, degrees (180 = down to the horizon)",
-                    ) {
-                        self.state.set_fov(v);
-                    }
-                    if let Some(v) = slider(ui, camera.yaw_deg, (-180.0, 180.0), "Rotation", "°", "Turns the all-sky image, degrees") {
-                        self.state.set_view(v, camera.pitch_deg);
-                    }
-                }
-                CameraKind::Equirect => {
-                    ui.weak("The map is geographic: north in the middle, east to the right.");
-                }
-            }
-        });
     }
 
     fn display_group(&mut self, ui: &mut egui::Ui) {
@@ -889,11 +1045,7 @@ impl SkyApp {
                 {
                     self.state.set_target_spp(spp);
                 }
-                let label = if render.paused {
-                    "▶ Resume"
-                } else {
-                    "⏸ Pause"
-                };
+                let label = if render.paused { "Resume" } else { "Pause" };
                 if ui
                     .button(label)
                     .on_hover_text("Pause or resume refining (the image is kept)")
@@ -905,74 +1057,85 @@ impl SkyApp {
     }
 
     fn export_group(&mut self, ui: &mut egui::Ui) {
-        egui::CollapsingHeader::new("Export").default_open(true).show(ui, |ui| {
-            let export = self.state.export.clone();
-            egui::ComboBox::from_label("Panorama size")
-                .selected_text(format!("{} × {}", export.width, export.height()))
-                .show_ui(ui, |ui| {
-                    for width in EXPORT_WIDTHS {
-                        if ui
-                            .selectable_label(export.width == width, format!("{width} × {}", width / 2))
-                            .clicked()
-                        {
-                            self.state.set_export_width(width);
-                        }
+        egui::CollapsingHeader::new("Export")
+            .default_open(true)
+            .show(ui, |ui| self.export_controls(ui));
+    }
+
+    fn export_controls(&mut self, ui: &mut egui::Ui) {
+        let export = self.state.export.clone();
+        egui::ComboBox::from_label("Panorama size")
+            .selected_text(format!("{} × {}", export.width, export.height()))
+            .show_ui(ui, |ui| {
+                for width in EXPORT_WIDTHS {
+                    let text = format!("{width} × {}", width / 2);
+                    if ui.selectable_label(export.width == width, text).clicked() {
+                        self.state.set_export_width(width);
                     }
-                })
-                .response
-                .on_hover_text("Size of the equirectangular EXR panorama");
-            let mut spp = export.spp;
-            if ui
-                .add(Slider::new(&mut spp, 1..=MAX_EXPORT_SPP).logarithmic(true).text("Export spp"))
-                .on_hover_text("Samples per pixel of the exported panorama")
-                .changed()
-            {
-                self.state.set_export_spp(spp);
-            }
-            let running = self.export_job.is_some();
-            if ui
-                .add_enabled(!running && !self.dialog_open, egui::Button::new("Export HDR panorama…"))
-                .on_hover_text(
-                    "Render the scene as an equirectangular OpenEXR in the background: the same file as \
-                     `skyrender render --camera equirect` writes",
-                )
-                .clicked()
-            {
-                self.open_dialog(Dialog::Export);
-            }
-            match self.state.export_status.clone() {
-                ExportStatus::Running { done, total, .. } => {
-                    ui.horizontal(|ui| {
-                        let fraction = done as f32 / total.max(1) as f32;
-                        ui.add(
-                            egui::ProgressBar::new(fraction)
-                                .text(format!("{done} / {total} spp"))
-                                .desired_width(160.0),
-                        );
-                        if ui.button("Cancel").on_hover_text("Stop the export; nothing is written").clicked() {
-                            self.cancel_export();
-                        }
-                    });
                 }
-                ExportStatus::Finished { path, elapsed } => {
-                    ui.weak(format!("Exported {} in {:.1} s", path.display(), elapsed.as_secs_f64()));
-                }
-                ExportStatus::Cancelled => {
-                    ui.weak("Export cancelled; nothing written.");
-                }
-                ExportStatus::Failed(e) => {
-                    ui.colored_label(Color32::from_rgb(255, 110, 100), format!("Export failed: {e}"));
-                }
-                ExportStatus::Idle => {}
+            })
+            .response
+            .on_hover_text("Size of the equirectangular EXR panorama");
+        let mut spp = export.spp;
+        let spp_slider = Slider::new(&mut spp, 1..=MAX_EXPORT_SPP)
+            .logarithmic(true)
+            .text("Export spp");
+        if ui
+            .add(spp_slider)
+            .on_hover_text("Samples per pixel of the exported panorama")
+            .changed()
+        {
+            self.state.set_export_spp(spp);
+        }
+        let can_export = self.export_job.is_none() && !self.dialog_open;
+        let export_button = egui::Button::new("Export HDR panorama…");
+        if ui
+            .add_enabled(can_export, export_button)
+            .on_hover_text(
+                "Render the scene as an equirectangular OpenEXR in the background: \
+                 the same file as `skyrender render --camera equirect` writes",
+            )
+            .clicked()
+        {
+            self.open_dialog(Dialog::Export);
+        }
+        let error_colour = Color32::from_rgb(255, 110, 100);
+        match self.state.export_status.clone() {
+            ExportStatus::Running { done, total, .. } => {
+                ui.horizontal(|ui| {
+                    let fraction = done as f32 / total.max(1) as f32;
+                    let bar = egui::ProgressBar::new(fraction)
+                        .text(format!("{done} / {total} spp"))
+                        .desired_width(160.0);
+                    ui.add(bar);
+                    let cancel = ui
+                        .button("Cancel")
+                        .on_hover_text("Stop the export; nothing is written");
+                    if cancel.clicked() {
+                        self.cancel_export();
+                    }
+                });
             }
-            if ui
-                .add_enabled(self.frame.is_some() && !self.dialog_open, egui::Button::new("Save view as PNG/EXR…"))
-                .on_hover_text("Save the image on screen: PNG as shown, EXR as linear HDR")
-                .clicked()
-            {
-                self.open_dialog(Dialog::SaveView);
+            ExportStatus::Finished { path, elapsed } => {
+                let seconds = elapsed.as_secs_f64();
+                ui.weak(format!("Exported {} in {seconds:.1} s", path.display()));
             }
-        });
+            ExportStatus::Cancelled => {
+                ui.weak("Export cancelled; nothing written.");
+            }
+            ExportStatus::Failed(e) => {
+                ui.colored_label(error_colour, format!("Export failed: {e}"));
+            }
+            ExportStatus::Idle => {}
+        }
+        let can_save = self.frame.is_some() && !self.dialog_open;
+        if ui
+            .add_enabled(can_save, egui::Button::new("Save view as PNG/EXR…"))
+            .on_hover_text("Save the image on screen: PNG as shown, EXR as linear HDR")
+            .clicked()
+        {
+            self.open_dialog(Dialog::SaveView);
+        }
     }
 
     /// The central image, with dragging and arrow keys to turn the view.
@@ -1004,9 +1167,18 @@ impl SkyApp {
                 let centre = rect.min
                     + egui::vec2(px as f32 / w * rect.width(), py as f32 / h * rect.height());
                 if rect.expand(1.0).contains(centre) {
-                    let stroke =
-                        egui::Stroke::new(1.5, Color32::from_rgba_unmultiplied(255, 230, 120, 200));
-                    ui.painter().circle_stroke(centre, 10.0, stroke);
+                    // A dark ring around a light one reads on any background.
+                    let painter = ui.painter();
+                    painter.circle_stroke(
+                        centre,
+                        12.0,
+                        egui::Stroke::new(3.0, Color32::from_black_alpha(160)),
+                    );
+                    painter.circle_stroke(
+                        centre,
+                        12.0,
+                        egui::Stroke::new(1.5, Color32::from_rgb(255, 220, 90)),
+                    );
                 }
             }
         }
@@ -1052,8 +1224,9 @@ impl SkyApp {
     }
 }
 
-/// A labelled slider with units and a tooltip over `value`; the new value if
-/// the user changed it.
+/// A labelled slider with units and a tooltip over `value` (one decimal for
+/// wide ranges such as degrees, two otherwise); the new value if the user
+/// changed it.
 fn slider(
     ui: &mut egui::Ui,
     value: f64,
@@ -1064,7 +1237,12 @@ fn slider(
 ) -> Option<f64> {
     let mut v = value;
     let response = ui
-        .add(Slider::new(&mut v, lo..=hi).text(text).suffix(suffix))
+        .add(
+            Slider::new(&mut v, lo..=hi)
+                .text(text)
+                .suffix(suffix)
+                .max_decimals(if hi - lo >= 100.0 { 1 } else { 2 }),
+        )
         .on_hover_text(tooltip);
     (response.changed() && v != value).then_some(v)
 }

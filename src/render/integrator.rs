@@ -176,7 +176,9 @@ impl<'a> Integrator<'a> {
                     let x = origin + dir * collision.t;
                     let c = self.medium.coefficients(x.length(), lanes);
                     let majorant = collision.majorant;
-                    if opts.next_event_estimation {
+                    // A next-event estimate at a vertex after `depth` real
+                    // scatterings adds scattering order depth + 1.
+                    if opts.next_event_estimation && depth < max_order {
                         let to_sun = self.sample_sun_direction(rng);
                         let mu = dir.dot(to_sun);
                         let tr = self.shadow(x, to_sun, lanes, rng);
@@ -187,7 +189,7 @@ impl<'a> Integrator<'a> {
                                 * tr[j];
                         }
                     }
-                    if depth >= max_order {
+                    if depth + 1 >= max_order {
                         // Only lower orders wanted: continue as if null.
                         for j in 0..LANES {
                             beta[j] *= 1.0 - c.extinction(j) / majorant;
@@ -225,7 +227,7 @@ impl<'a> Integrator<'a> {
                     let normal = (origin + dir * span.t_exit).normalize();
                     let x = normal * (self.medium.planet_radius_m + SURFACE_OFFSET_M);
                     let albedo = self.medium.ground_albedo;
-                    if opts.next_event_estimation {
+                    if opts.next_event_estimation && depth < max_order {
                         let to_sun = self.sample_sun_direction(rng);
                         let cos = normal.dot(to_sun);
                         if cos > 0.0 {
@@ -236,7 +238,7 @@ impl<'a> Integrator<'a> {
                             }
                         }
                     }
-                    if depth >= max_order || albedo <= 0.0 {
+                    if depth + 1 >= max_order || albedo <= 0.0 {
                         break;
                     }
                     // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.

@@ -27,22 +27,30 @@ pub type Lanes = [f64; LANES];
 
 const NODE_STEP_M: f64 = 50.0;
 
-/// Shell boundaries (altitude, m): thin near the ground where density
-/// changes fastest in absolute terms, thicker above.
+/// Shell boundaries (altitude, m): thin near the ground where the density
+/// changes fastest in absolute terms, coarse high up where the whole shell's
+/// extinction is tiny. Fewer shells mean fewer pieces per ray; thicker shells
+/// mean looser bounds and more null collisions: this spacing balances the two
+/// for ground and grazing rays (see BENCHMARKS.md).
 fn shell_boundaries_m(top_m: f64) -> Vec<f64> {
+    const STEPS: [(f64, f64); 7] = [
+        (1_000.0, 250.0),
+        (4_000.0, 500.0),
+        (10_000.0, 1_000.0),
+        (20_000.0, 2_000.0),
+        (30_000.0, 5_000.0),
+        (50_000.0, 10_000.0),
+        (f64::INFINITY, 25_000.0),
+    ];
     let mut b = Vec::new();
     let mut h = 0.0;
-    while h < top_m {
+    while h < top_m - 1.0 {
         b.push(h);
-        h += if h < 2_000.0 {
-            250.0
-        } else if h < 20_000.0 {
-            1_000.0
-        } else if h < 40_000.0 {
-            2_000.0
-        } else {
-            5_000.0
-        };
+        let step = STEPS
+            .iter()
+            .find(|(below, _)| h < *below)
+            .map_or(25_000.0, |s| s.1);
+        h += step;
     }
     b.push(top_m);
     b
@@ -369,6 +377,7 @@ impl Medium {
             t: span.t_enter,
             piece_end: span.t_enter,
             majorant: 0.0,
+            budget: -1.0,
         }
     }
 
@@ -392,6 +401,7 @@ impl Medium {
         let mut walk = self.walk(origin, dir, span, bounds);
         let mut transmittance = [1.0; LANES];
         let mut control_depth = [0.0; LANES];
+        let mut budget = -rng.uniform_open0().ln();
         while let Some(piece) = walk.next_piece(self) {
             let (max, min) = self.shell_extinction(self.bounds_of(&walk, piece.shell), lanes);
             let control = match estimator {
@@ -408,12 +418,17 @@ impl Medium {
             if residual <= 0.0 {
                 continue;
             }
+            // Exponential steps carry over piece boundaries as an optical-depth
+            // budget, so a piece without an event costs no random number.
             let mut t = piece.t0;
             loop {
-                t -= rng.uniform_open0().ln() / residual;
-                if t >= piece.t1 {
+                let available = residual * (piece.t1 - t);
+                if budget >= available {
+                    budget -= available;
                     break;
                 }
+                t += budget / residual;
+                budget = -rng.uniform_open0().ln();
                 let c = self.coefficients((origin + dir * t).length(), lanes);
                 match estimator {
                     TransmittanceEstimator::DeltaTracking => {
@@ -421,7 +436,7 @@ impl Medium {
                         // estimate is still binary and unbiased.
                         let u = rng.uniform() * residual;
                         for (j, tr) in transmittance.iter_mut().enumerate() {
-                            if u < c.extinction(j) {
+                            if u < c.extinction(j) - control[j] {
                                 *tr = 0.0;
                             }
                         }
@@ -540,23 +555,30 @@ pub struct Tracker<'a> {
     t: f64,
     piece_end: f64,
     majorant: f64,
+    /// Optical depth left to the next collision (negative: draw a new one).
+    budget: f64,
 }
 
 impl Tracker<'_> {
     /// The next tentative collision, or `None` at the end of the span.
     pub fn next(&mut self, rng: &mut Rng) -> Option<Collision> {
+        if self.budget < 0.0 {
+            self.budget = -rng.uniform_open0().ln();
+        }
         loop {
-            if self.majorant > 0.0 {
-                let t = self.t - rng.uniform_open0().ln() / self.majorant;
-                if t < self.piece_end {
-                    self.t = t;
-                    return Some(Collision {
-                        t,
-                        majorant: self.majorant,
-                    });
-                }
+            // The exponential optical-depth budget carries over piece
+            // boundaries (memorylessness), so crossing a piece costs no
+            // random number.
+            let available = self.majorant * (self.piece_end - self.t);
+            if self.budget < available {
+                self.t += self.budget / self.majorant;
+                self.budget = -1.0;
+                return Some(Collision {
+                    t: self.t,
+                    majorant: self.majorant,
+                });
             }
-            // Memoryless: restart at the next piece with its own majorant.
+            self.budget -= available;
             let piece = self.walk.next_piece(self.medium)?;
             let (max, _) = self
                 .medium
