@@ -1,0 +1,282 @@
+//! The command line: outputs, their metadata, and every kind of bad input.
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+fn skyrender(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_skyrender"))
+        .args(args)
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .output()
+        .expect("run skyrender")
+}
+
+fn stderr(out: &Output) -> String {
+    String::from_utf8_lossy(&out.stderr).into_owned()
+}
+
+/// A failing run: non-zero exit, a one-line error naming `needle`, and no file.
+fn assert_rejected(args: &[&str], needle: &str, output: Option<&Path>) {
+    let out = skyrender(args);
+    let err = stderr(&out);
+    assert!(!out.status.success(), "{args:?} succeeded");
+    assert_eq!(
+        err.trim().lines().count(),
+        1,
+        "{args:?}: not one line: {err}"
+    );
+    assert!(
+        err.to_lowercase().contains(&needle.to_lowercase()),
+        "{args:?}: '{err}' lacks '{needle}'"
+    );
+    if let Some(path) = output {
+        assert!(!path.exists(), "{args:?} left {}", path.display());
+    }
+}
+
+#[test]
+fn render_writes_an_exr_with_scene_metadata() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sky.exr");
+    let out = skyrender(&[
+        "render",
+        "--preset",
+        "sunset",
+        "--width",
+        "16",
+        "--height",
+        "8",
+        "--spp",
+        "2",
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        stdout.contains("16x8") && stdout.contains("2 spp") && stdout.contains("paths/s"),
+        "{stdout}"
+    );
+    let image = exr::prelude::read_all_data_from_file(&path).unwrap();
+    let attributes = &image.layer_data[0].attributes.other;
+    let scene = attributes
+        .iter()
+        .find(|(k, _)| k.to_string() == "skyrender:scene")
+        .map(|(_, v)| format!("{v:?}"))
+        .expect("scene attribute");
+    assert!(scene.contains("elevation_deg"), "{scene}");
+    assert!(attributes
+        .iter()
+        .any(|(k, _)| k.to_string() == "skyrender:spp"));
+    assert!(image.attributes.chromaticities.is_some());
+    // Only the EXR is left in the directory (atomic write, no temp files).
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+#[test]
+fn render_png_and_fisheye_and_perspective() {
+    let dir = tempfile::tempdir().unwrap();
+    for camera in ["fisheye", "perspective", "equirect"] {
+        let path = dir.path().join(format!("{camera}.png"));
+        let out = skyrender(&[
+            "render",
+            "--camera",
+            camera,
+            "--width",
+            "12",
+            "--height",
+            "12",
+            "--spp",
+            "1",
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let png = image::open(&path).unwrap();
+        assert_eq!((png.width(), png.height()), (12, 12));
+    }
+}
+
+#[test]
+fn bad_inputs_get_one_line_errors_and_no_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let o = out.to_str().unwrap();
+    let cases: Vec<(Vec<&str>, &str)> = vec![
+        (vec!["render", "--width", "0", "-o", o], "width"),
+        (vec!["render", "--width", "-4", "-o", o], "width"),
+        (vec!["render", "--height", "0", "-o", o], "height"),
+        (vec!["render", "--spp", "0", "-o", o], "spp"),
+        (vec!["render", "--spp", "-1", "-o", o], "spp"),
+        (vec!["render", "--altitude", "-1", "-o", o], "altitude"),
+        (vec!["render", "--altitude", "2e8", "-o", o], "altitude"),
+        (
+            vec!["render", "--sun-elevation", "nan", "-o", o],
+            "sun elevation",
+        ),
+        (
+            vec!["render", "--fov", "inf", "--camera", "perspective", "-o", o],
+            "fov",
+        ),
+        (vec!["render", "--ground-albedo", "1.5", "-o", o], "albedo"),
+        (vec!["render", "--preset", "noon", "-o", o], "preset"),
+        (
+            vec!["render", "--camera", "orthographic", "-o", o],
+            "camera",
+        ),
+        (
+            vec!["render", "--scene", "/nonexistent/scene.toml", "-o", o],
+            "scene",
+        ),
+        (vec!["render", "--threads", "0", "-o", o], "threads"),
+    ];
+    for (args, needle) in cases {
+        assert_rejected(&args, needle, Some(&out));
+    }
+    let jpg = dir.path().join("x.jpg");
+    assert_rejected(
+        &["render", "--spp", "1", "-o", jpg.to_str().unwrap()],
+        "extension",
+        Some(&jpg),
+    );
+    let unwritable = dir.path().join("missing-dir").join("x.exr");
+    assert_rejected(
+        &["render", "--spp", "1", "-o", unwritable.to_str().unwrap()],
+        "output",
+        Some(&unwritable),
+    );
+    let bad_scene = dir.path().join("bad.toml");
+    std::fs::write(&bad_scene, "[sun]\nelevation_deg = \"high\"\n").unwrap();
+    assert_rejected(
+        &["render", "--scene", bad_scene.to_str().unwrap(), "-o", o],
+        "scene",
+        Some(&out),
+    );
+    assert_rejected(
+        &[
+            "radiance",
+            "--view-zenith",
+            "0",
+            "--view-azimuth",
+            "0",
+            "--samples",
+            "0",
+        ],
+        "samples",
+        None,
+    );
+    assert_rejected(
+        &["radiance", "--view-zenith", "200", "--view-azimuth", "0"],
+        "view zenith",
+        None,
+    );
+    assert_rejected(
+        &[
+            "radiance",
+            "--view-zenith",
+            "0",
+            "--view-azimuth",
+            "0",
+            "--wavelength",
+            "100",
+        ],
+        "wavelength",
+        None,
+    );
+    assert_rejected(&["atmosphere", "--altitude", "-10"], "altitude", None);
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        1,
+        "only bad.toml remains"
+    );
+}
+
+#[test]
+fn radiance_json_has_the_documented_keys() {
+    let out = skyrender(&[
+        "radiance",
+        "--view-zenith",
+        "30",
+        "--view-azimuth",
+        "90",
+        "--wavelengths",
+        "400:700:150",
+        "--samples",
+        "200",
+        "--unit-sun",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(v["view_zenith_deg"], 30.0);
+    assert_eq!(v["view_azimuth_deg"], 90.0);
+    assert_eq!(v["samples"], 200);
+    let spectrum = v["spectrum"].as_array().unwrap();
+    assert_eq!(spectrum.len(), 3);
+    for s in spectrum {
+        assert!(s["radiance"].as_f64().unwrap() > 0.0);
+        assert!(s["std_error"].as_f64().unwrap() >= 0.0);
+        assert!(s["wavelength_nm"].as_f64().is_some());
+    }
+    // Rayleigh blue: more radiance at 400 than at 700 nm.
+    assert!(spectrum[0]["radiance"].as_f64() > spectrum[2]["radiance"].as_f64());
+}
+
+#[test]
+fn atmosphere_json_reports_the_standard_and_optical_depths() {
+    let out = skyrender(&[
+        "atmosphere",
+        "--altitude",
+        "0",
+        "--wavelength",
+        "550",
+        "--json",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let v: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    for key in [
+        "temperature_k",
+        "pressure_pa",
+        "density_kg_m3",
+        "number_density_m3",
+        "rayleigh_scattering_m",
+        "ozone_absorption_m",
+        "aerosol_extinction_m",
+    ] {
+        assert!(v[key].as_f64().is_some(), "{key}");
+    }
+    assert_eq!(v["pressure_pa"], 101_325.0);
+    let tau = v["optical_depth"]["rayleigh"].as_f64().unwrap();
+    assert!((tau - 0.0971).abs() < 0.001, "{tau}");
+    assert!(v["optical_depth"]["ozone"].as_f64().unwrap() > 0.0);
+    assert!(v["optical_depth"]["aerosol"].as_f64().unwrap() > 0.0);
+    let high = skyrender(&[
+        "atmosphere",
+        "--altitude",
+        "20000",
+        "--no-aerosols",
+        "--json",
+    ]);
+    let v: serde_json::Value = serde_json::from_slice(&high.stdout).unwrap();
+    assert_eq!(v["aerosol_extinction_m"], 0.0);
+    assert!((v["temperature_k"].as_f64().unwrap() - 216.65).abs() < 0.01);
+}
+
+#[test]
+fn presets_are_listed() {
+    let out = skyrender(&["presets"]);
+    let text = String::from_utf8_lossy(&out.stdout);
+    for name in ["midday", "afternoon", "sunset", "twilight", "space"] {
+        assert!(text.contains(name), "{text}");
+    }
+}
+
+#[test]
+fn no_subcommand_without_display_points_at_the_cli() {
+    let out = skyrender(&[]);
+    assert!(!out.status.success());
+    let err = stderr(&out);
+    assert_eq!(err.trim().lines().count(), 1, "{err}");
+    assert!(err.contains("skyrender render"), "{err}");
+}

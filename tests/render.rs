@@ -1,0 +1,127 @@
+//! Whole-image properties: determinism, finiteness, and the look of the presets.
+
+use skyrender::render::Renderer;
+use skyrender::Scene;
+
+fn render(scene: &Scene, threads: usize) -> Vec<[f32; 3]> {
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap();
+    let renderer = Renderer::new(scene).unwrap();
+    let mut film = renderer.new_film();
+    pool.install(|| {
+        for pass in 0..scene.render.spp {
+            assert!(renderer.render_pass(&mut film, pass, &|| false).completed);
+        }
+    });
+    film.to_rgb().pixels
+}
+
+fn small(preset: &str, width: u32, height: u32, spp: u32) -> Scene {
+    let mut scene = Scene::preset(preset).unwrap();
+    scene.render.width = width;
+    scene.render.height = height;
+    scene.render.spp = spp;
+    scene
+}
+
+#[test]
+fn same_seed_same_image_whatever_the_thread_count() {
+    let scene = small("sunset", 24, 12, 3);
+    let one = render(&scene, 1);
+    let two = render(&scene, 2);
+    let three = render(&scene, 3);
+    assert!(one == two && two == three);
+    let mut other = scene.clone();
+    other.render.seed = 99;
+    assert!(render(&other, 2) != one);
+}
+
+#[test]
+fn every_preset_renders_finite_non_negative_pixels() {
+    for (name, _) in skyrender::scene::PRESETS {
+        let pixels = render(&small(name, 16, 8, 2), 2);
+        let luminance: Vec<f32> = pixels
+            .iter()
+            .map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
+            .collect();
+        assert!(
+            luminance.iter().all(|y| y.is_finite() && *y >= 0.0),
+            "{name}"
+        );
+        assert!(luminance.iter().any(|y| *y > 0.0), "{name}");
+    }
+}
+
+/// Mean linear RGB over the rows whose elevation lies in `el_range` (equirect).
+fn band_mean(pixels: &[[f32; 3]], width: u32, height: u32, el_range: (f64, f64)) -> [f64; 3] {
+    let mut sum = [0.0; 3];
+    let mut n = 0.0;
+    for y in 0..height {
+        let el = 90.0 - (f64::from(y) + 0.5) / f64::from(height) * 180.0;
+        if el < el_range.0 || el > el_range.1 {
+            continue;
+        }
+        for x in 0..width {
+            let p = pixels[(y * width + x) as usize];
+            for c in 0..3 {
+                sum[c] += f64::from(p[c]);
+            }
+            n += 1.0;
+        }
+    }
+    sum.map(|s| s / n)
+}
+
+#[test]
+fn midday_zenith_is_blue_and_bright() {
+    let (w, h) = (32, 16);
+    let pixels = render(&small("midday", w, h, 16), 2);
+    let zenith = band_mean(&pixels, w, h, (60.0, 90.0));
+    assert!(zenith[2] > zenith[0] * 1.3, "zenith {zenith:?}");
+    let y = 0.2126 * zenith[0] + 0.7152 * zenith[1] + 0.0722 * zenith[2];
+    // A clear midday sky is several thousand cd/m².
+    assert!((1_000.0..20_000.0).contains(&y), "{y}");
+}
+
+#[test]
+fn sunset_horizon_toward_the_sun_is_warmer_than_the_zenith() {
+    let (w, h) = (64, 32);
+    let pixels = render(&small("sunset", w, h, 16), 2);
+    // Columns around azimuth 270° (west): u = 270/360 + 0.5 → 0.25 of the width.
+    let mut horizon = [0.0; 3];
+    let mut n = 0.0;
+    for y in 0..h {
+        let el = 90.0 - (f64::from(y) + 0.5) / f64::from(h) * 180.0;
+        if !(0.0..8.0).contains(&el) {
+            continue;
+        }
+        for x in (w / 4 - 4)..(w / 4 + 4) {
+            let p = pixels[(y * w + x) as usize];
+            for c in 0..3 {
+                horizon[c] += f64::from(p[c]);
+            }
+            n += 1.0;
+        }
+    }
+    let horizon = horizon.map(|s| s / n);
+    let zenith = band_mean(&pixels, w, h, (70.0, 90.0));
+    assert!(
+        horizon[0] / horizon[2] > zenith[0] / zenith[2] * 1.5,
+        "horizon {horizon:?} zenith {zenith:?}"
+    );
+}
+
+#[test]
+fn twilight_is_dark_but_its_zenith_stays_blue() {
+    let (w, h) = (32, 16);
+    let pixels = render(&small("twilight", w, h, 16), 2);
+    let zenith = band_mean(&pixels, w, h, (60.0, 90.0));
+    let day = band_mean(&render(&small("midday", w, h, 4), 2), w, h, (60.0, 90.0));
+    assert!(
+        zenith[1] < day[1] / 20.0,
+        "twilight {zenith:?} vs day {day:?}"
+    );
+    assert!(zenith[2] > zenith[0], "ozone-blue zenith: {zenith:?}");
+}
