@@ -75,8 +75,8 @@ impl Atmosphere {
             (true, Some(du)) => du / own_du,
         };
         Self {
-            ozone_scale,
             params,
+            ozone_scale,
         }
     }
 

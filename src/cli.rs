@@ -391,7 +391,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let cancel = AtomicBool::new(false);
             let (spp, paths, discarded) = pool.install(|| {
                 render_to_file(&scene, &output, &cancel, |pass, _| {
-                    bar.set_position(u64::from(pass))
+                    bar.set_position(u64::from(pass));
                 })
             })?;
             bar.finish_and_clear();

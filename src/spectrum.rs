@@ -51,7 +51,9 @@ impl ColourMatching {
             cdf.push(cdf.last().unwrap() + p);
         }
         let last = *cdf.last().unwrap();
-        cdf.iter_mut().for_each(|c| *c /= last);
+        for c in &mut cdf {
+            *c /= last;
+        }
         let pdf = probabilities.iter().map(|p| p / last / step_nm).collect();
         Self {
             first_nm: wavelengths[0],

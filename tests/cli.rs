@@ -62,13 +62,13 @@ fn render_writes_an_exr_with_scene_metadata() {
     let attributes = &image.layer_data[0].attributes.other;
     let scene = attributes
         .iter()
-        .find(|(k, _)| k.to_string() == "skyrender:scene")
+        .find(|(k, _)| k.as_slice() == b"skyrender:scene")
         .map(|(_, v)| format!("{v:?}"))
         .expect("scene attribute");
     assert!(scene.contains("elevation_deg"), "{scene}");
     assert!(attributes
         .iter()
-        .any(|(k, _)| k.to_string() == "skyrender:spp"));
+        .any(|(k, _)| k.as_slice() == b"skyrender:spp"));
     assert!(image.attributes.chromaticities.is_some());
     // Only the EXR is left in the directory (atomic write, no temp files).
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);

@@ -8,7 +8,6 @@ use skyrender::render::{
     TransmittanceEstimator, LANES,
 };
 use skyrender::rng::Rng;
-use skyrender::Scene;
 
 /// Mean and standard error of `n` samples of lane 0..LANES.
 fn estimate(
@@ -58,14 +57,14 @@ fn single_scattering_quadrature(
             .sum::<f64>()
     };
     let span = medium.span(origin, view).unwrap();
-    let steps = 4000;
-    let ds = (span.t_exit - span.t_enter) / steps as f64;
+    let steps = 4000u32;
+    let ds = (span.t_exit - span.t_enter) / f64::from(steps);
     let mu = view.dot(sun_dir);
     let gamma = skyrender::physics::rayleigh::phase_gamma(wavelength_nm);
     let mut tau_view = 0.0;
     let mut radiance = 0.0;
     for i in 0..steps {
-        let p = origin + view * (span.t_enter + (i as f64 + 0.5) * ds);
+        let p = origin + view * (span.t_enter + (f64::from(i) + 0.5) * ds);
         let h = p.length() - atmosphere.params.planet_radius_m;
         let k = extinction(p);
         tau_view += 0.5 * k * ds;

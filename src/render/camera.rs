@@ -111,8 +111,8 @@ impl Camera {
                 let sx = dir.dot(self.right) / z / self.tan_half_fov;
                 let sy = dir.dot(self.up) / z / (self.tan_half_fov * self.height / self.width);
                 Some((
-                    (sx + 1.0) / 2.0 * self.width,
-                    (1.0 - sy) / 2.0 * self.height,
+                    f64::midpoint(sx, 1.0) * self.width,
+                    f64::midpoint(1.0, -sy) * self.height,
                 ))
             }
             CameraKind::Fisheye => {
@@ -125,8 +125,8 @@ impl Camera {
                 let nx = -r * a.sin();
                 let ny = r * a.cos();
                 Some((
-                    (nx * scale + self.width) / 2.0,
-                    (self.height - ny * scale) / 2.0,
+                    f64::midpoint(nx * scale, self.width),
+                    f64::midpoint(self.height, -ny * scale),
                 ))
             }
         }

@@ -12,6 +12,7 @@
 //! * then a random choice between a real scattering event (probability P_s)
 //!   and a null collision (1 − P_s), each weighted by its coefficient over
 //!   σ̄ and its probability.
+//!
 //! Absorption never terminates a path; it only weights it. Russian roulette
 //! ends paths without bias. On camera rays the majorant is scaled up so that
 //! at least a few collisions (and so next-event estimates) fall along the ray
@@ -191,8 +192,8 @@ impl<'a> Integrator<'a> {
                     }
                     if depth + 1 >= max_order {
                         // Only lower orders wanted: continue as if null.
-                        for j in 0..LANES {
-                            beta[j] *= 1.0 - c.extinction(j) / majorant;
+                        for (j, b) in beta.iter_mut().enumerate() {
+                            *b *= 1.0 - c.extinction(j) / majorant;
                         }
                         continue;
                     }
@@ -209,8 +210,8 @@ impl<'a> Integrator<'a> {
                             .map(|k| self.scattering_phase(&c, lanes, k, mu) / c.scattering(k))
                             .sum::<f64>()
                             * inv_active;
-                        for j in 0..LANES {
-                            beta[j] *= self.scattering_phase(&c, lanes, j, mu)
+                        for (j, b) in beta.iter_mut().enumerate() {
+                            *b *= self.scattering_phase(&c, lanes, j, mu)
                                 / (majorant * p_scatter * pdf);
                         }
                         origin = x;
@@ -219,8 +220,8 @@ impl<'a> Integrator<'a> {
                         scattered = true;
                         break;
                     }
-                    for j in 0..LANES {
-                        beta[j] *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
+                    for (j, b) in beta.iter_mut().enumerate() {
+                        *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
                     }
                 }
                 if !scattered && span.hits_ground {

@@ -254,7 +254,7 @@ impl Medium {
     }
 
     /// Majorant and control (minorant) extinction of a shell, per lane.
-    fn shell_extinction(&self, shell: &ShellBounds, lanes: &SpectralLanes) -> (Lanes, Lanes) {
+    fn shell_extinction(shell: &ShellBounds, lanes: &SpectralLanes) -> (Lanes, Lanes) {
         let max = std::array::from_fn(|j| {
             lanes.rayleigh_m2[j] * shell.air_max
                 + lanes.ozone_max_m2[j] * shell.ozone_max
@@ -362,7 +362,7 @@ impl Medium {
             let mut probe = walk.clone();
             let mut tau = 0.0;
             while let Some(piece) = probe.next_piece(self) {
-                let (max, _) = self.shell_extinction(self.bounds_of(&probe, piece.shell), lanes);
+                let (max, _) = Self::shell_extinction(self.bounds_of(&probe, piece.shell), lanes);
                 tau += lane_max(&max, lanes.active) * (piece.t1 - piece.t0);
             }
             if tau > 0.0 && tau < min_expected_events {
@@ -403,7 +403,7 @@ impl Medium {
         let mut control_depth = [0.0; LANES];
         let mut budget = -rng.uniform_open0().ln();
         while let Some(piece) = walk.next_piece(self) {
-            let (max, min) = self.shell_extinction(self.bounds_of(&walk, piece.shell), lanes);
+            let (max, min) = Self::shell_extinction(self.bounds_of(&walk, piece.shell), lanes);
             let control = match estimator {
                 TransmittanceEstimator::ResidualRatioTracking => min,
                 _ => [0.0; LANES],
@@ -580,9 +580,10 @@ impl Tracker<'_> {
             }
             self.budget -= available;
             let piece = self.walk.next_piece(self.medium)?;
-            let (max, _) = self
-                .medium
-                .shell_extinction(self.medium.bounds_of(&self.walk, piece.shell), self.lanes);
+            let (max, _) = Medium::shell_extinction(
+                self.medium.bounds_of(&self.walk, piece.shell),
+                self.lanes,
+            );
             self.t = piece.t0;
             self.piece_end = piece.t1;
             self.majorant = lane_max(&max, self.lanes.active) * self.scale;
