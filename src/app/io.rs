@@ -45,9 +45,22 @@ fn check_writable(path: &Path) -> Result<(), String> {
         ));
     }
     let dir = parent_dir(path);
-    tempfile::NamedTempFile::new_in(dir)
+    temp_file_in(dir)
         .map(drop)
         .map_err(|e| format!("cannot write '{}': {e}", path.display()))
+}
+
+/// A temporary file in `dir` that becomes an ordinary file when persisted
+/// (on Unix mode 0666 less the umask, not tempfile's private 0600).
+fn temp_file_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".skyrender-");
+    #[cfg(unix)]
+    {
+        use std::os::unix::fs::PermissionsExt as _;
+        builder.permissions(std::fs::Permissions::from_mode(0o666));
+    }
+    builder.tempfile_in(dir)
 }
 
 fn parent_dir(path: &Path) -> &Path {
@@ -207,7 +220,7 @@ pub fn write_png_atomic(
     if path.is_dir() {
         return Err(fail(&"it is a directory"));
     }
-    let temp = tempfile::NamedTempFile::new_in(parent_dir(path)).map_err(|e| fail(&e))?;
+    let temp = temp_file_in(parent_dir(path)).map_err(|e| fail(&e))?;
     {
         let mut writer = BufWriter::new(temp.as_file());
         image::codecs::png::PngEncoder::new(&mut writer)
@@ -226,7 +239,7 @@ pub fn save_scene(path: &Path, scene: &Scene) -> Result<(), String> {
     if path.is_dir() {
         return Err(fail(&"it is a directory"));
     }
-    let mut temp = tempfile::NamedTempFile::new_in(parent_dir(path)).map_err(|e| fail(&e))?;
+    let mut temp = temp_file_in(parent_dir(path)).map_err(|e| fail(&e))?;
     temp.write_all(scene.to_toml().as_bytes())
         .map_err(|e| fail(&e))?;
     temp.as_file().sync_all().map_err(|e| fail(&e))?;

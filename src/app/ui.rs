@@ -37,8 +37,15 @@ const DRAFT_SECONDS: f64 = 0.04;
 const MIN_DRAFT_PIXELS: f64 = 1024.0;
 /// Speed assumed before the first frame is measured, paths per second.
 const INITIAL_PATHS_PER_SECOND: f64 = 150_000.0;
-/// How often the UI polls the render service while it renders.
+/// How often the UI polls the render service while a first frame is due
+/// (and at most how often while refining).
 const RENDER_POLL: Duration = Duration::from_millis(15);
+/// At least how often the UI polls while refining; in between it polls a few
+/// times per pass, so that redrawing the window (which is not free on a
+/// software renderer) leaves the CPU to the path tracer.
+const REFINE_POLL_MAX: Duration = Duration::from_millis(100);
+/// Radius of the ring marking the sun, points.
+const SUN_RING_RADIUS: f32 = 12.0;
 /// How often the UI refreshes while an export or a file task runs.
 const TASK_POLL: Duration = Duration::from_millis(100);
 /// The camera mode buttons: mode, label, tooltip.
@@ -481,7 +488,7 @@ impl SkyApp {
             }
         }
         if self.is_rendering() {
-            ctx.request_repaint_after(RENDER_POLL);
+            ctx.request_repaint_after(self.poll_interval());
         }
         if self.busy() {
             ctx.request_repaint_after(TASK_POLL);
@@ -541,6 +548,17 @@ impl SkyApp {
         if let Some(full) = self.queued_full.take() {
             self.started_epoch = self.service.start(full.clone());
             self.started_scene = full;
+        }
+    }
+
+    /// How soon to look for the next frame: quickly while a first frame is
+    /// due, about four times per pass while refining.
+    fn poll_interval(&self) -> Duration {
+        match &self.frame {
+            Some(f) if self.pending_since.is_none() && f.spp > 0 => {
+                (f.elapsed / f.spp / 4).clamp(RENDER_POLL, REFINE_POLL_MAX)
+            }
+            _ => RENDER_POLL,
         }
     }
 
@@ -1166,19 +1184,23 @@ impl SkyApp {
             if let Some((px, py)) = camera.project(sun) {
                 let centre = rect.min
                     + egui::vec2(px as f32 / w * rect.width(), py as f32 / h * rect.height());
-                if rect.expand(1.0).contains(centre) {
-                    // A dark ring around a light one reads on any background.
-                    let painter = ui.painter();
-                    painter.circle_stroke(
-                        centre,
-                        12.0,
-                        egui::Stroke::new(3.0, Color32::from_black_alpha(160)),
-                    );
-                    painter.circle_stroke(
-                        centre,
-                        12.0,
-                        egui::Stroke::new(1.5, Color32::from_rgb(255, 220, 90)),
-                    );
+                // The equirectangular map wraps around: a sun on its edge
+                // shows on both sides.
+                let copies: &[f32] = if scene.camera.kind == CameraKind::Equirect {
+                    &[-1.0, 0.0, 1.0]
+                } else {
+                    &[0.0]
+                };
+                let painter = ui.painter().with_clip_rect(rect);
+                for shift in copies {
+                    let c = centre + egui::vec2(shift * rect.width(), 0.0);
+                    if rect.expand(SUN_RING_RADIUS).contains(c) {
+                        // A dark ring around a light one reads on any background.
+                        let dark = egui::Stroke::new(3.0, Color32::from_black_alpha(160));
+                        let light = egui::Stroke::new(1.5, Color32::from_rgb(255, 220, 90));
+                        painter.circle_stroke(c, SUN_RING_RADIUS, dark);
+                        painter.circle_stroke(c, SUN_RING_RADIUS, light);
+                    }
                 }
             }
         }

@@ -109,6 +109,42 @@ impl Coefficients {
     }
 }
 
+/// Most shells any atmosphere top (≤ 200 km) produces.
+const MAX_SHELLS: usize = 32;
+
+/// Extinction bounds of one shell for the lanes of one path.
+#[derive(Clone, Copy, Debug, Default)]
+struct ShellExtinction {
+    /// Control (minorant) per lane, m⁻¹.
+    min: Lanes,
+    /// Majorant common to the active lanes.
+    majorant: f64,
+    /// Residual majorant common to the active lanes: max over lanes of max − min.
+    residual: f64,
+}
+
+impl ShellExtinction {
+    fn new(shell: &ShellBounds, lanes: &SpectralLanes) -> Self {
+        let max: Lanes = std::array::from_fn(|j| {
+            lanes.rayleigh_m2[j] * shell.air_max
+                + lanes.ozone_max_m2[j] * shell.ozone_max
+                + lanes.aerosol_factor[j] * shell.aerosol_max
+        });
+        let min: Lanes = std::array::from_fn(|j| {
+            lanes.rayleigh_m2[j] * shell.air_min
+                + lanes.ozone_min_m2[j] * shell.ozone_min
+                + lanes.aerosol_factor[j] * shell.aerosol_min
+        });
+        Self {
+            majorant: lane_max(&max, lanes.active),
+            residual: (0..lanes.active)
+                .map(|j| max[j] - min[j])
+                .fold(0.0, f64::max),
+            min,
+        }
+    }
+}
+
 /// Per-wavelength constants of one path.
 #[derive(Clone, Debug)]
 pub struct SpectralLanes {
@@ -124,6 +160,9 @@ pub struct SpectralLanes {
     aerosol_factor: Lanes,
     /// Top-of-atmosphere spectral irradiance, W m⁻² nm⁻¹ (or 1 for a unit sun).
     pub sun_irradiance: Lanes,
+    /// Shell bounds for these wavelengths, computed once per path.
+    shells: [ShellExtinction; MAX_SHELLS],
+    global: ShellExtinction,
 }
 
 impl SpectralLanes {
@@ -137,7 +176,9 @@ impl SpectralLanes {
                 [0.0; 11]
             }
         });
-        Self {
+        let mut lanes = Self {
+            shells: [ShellExtinction::default(); MAX_SHELLS],
+            global: ShellExtinction::default(),
             wavelengths_nm,
             active,
             rayleigh_m2: wavelengths_nm.map(rayleigh::cross_section_m2),
@@ -155,6 +196,19 @@ impl SpectralLanes {
                     sun::Spectrum::get().irradiance_w_m2_nm(w)
                 }
             }),
+        };
+        for (i, shell) in medium.shells.iter().enumerate() {
+            lanes.shells[i] = ShellExtinction::new(shell, &lanes);
+        }
+        lanes.global = ShellExtinction::new(&medium.global, &lanes);
+        lanes
+    }
+
+    fn shell(&self, walk: &ShellWalk, shell: usize) -> &ShellExtinction {
+        if walk.global {
+            &self.global
+        } else {
+            &self.shells[shell]
         }
     }
 }
@@ -210,6 +264,7 @@ impl Medium {
                 aerosol_min: min(|n| n.aerosol_340_per_m),
             }
         };
+        assert!(boundaries.len() <= MAX_SHELLS + 1, "too many shells");
         let shells = boundaries
             .windows(2)
             .map(|w| bounds_between(w[0], w[1]))
@@ -251,21 +306,6 @@ impl Medium {
             c.absorption[j] = ext * (1.0 - self.aerosol_albedo) + o3 * o3_xs;
         }
         c
-    }
-
-    /// Majorant and control (minorant) extinction of a shell, per lane.
-    fn shell_extinction(shell: &ShellBounds, lanes: &SpectralLanes) -> (Lanes, Lanes) {
-        let max = std::array::from_fn(|j| {
-            lanes.rayleigh_m2[j] * shell.air_max
-                + lanes.ozone_max_m2[j] * shell.ozone_max
-                + lanes.aerosol_factor[j] * shell.aerosol_max
-        });
-        let min = std::array::from_fn(|j| {
-            lanes.rayleigh_m2[j] * shell.air_min
-                + lanes.ozone_min_m2[j] * shell.ozone_min
-                + lanes.aerosol_factor[j] * shell.aerosol_min
-        });
-        (max, min)
     }
 
     /// The part of the ray `origin + t·dir` (unit `dir`) inside the
@@ -331,14 +371,6 @@ impl Medium {
         }
     }
 
-    fn bounds_of(&self, walk: &ShellWalk, shell: usize) -> &ShellBounds {
-        if walk.global {
-            &self.global
-        } else {
-            &self.shells[shell]
-        }
-    }
-
     /// Distances to the sample points of a majorant (free-flight) process
     /// along `span`, one [`Collision`] at a time.
     ///
@@ -362,8 +394,7 @@ impl Medium {
             let mut probe = walk.clone();
             let mut tau = 0.0;
             while let Some(piece) = probe.next_piece(self) {
-                let (max, _) = Self::shell_extinction(self.bounds_of(&probe, piece.shell), lanes);
-                tau += lane_max(&max, lanes.active) * (piece.t1 - piece.t0);
+                tau += lanes.shell(&probe, piece.shell).majorant * (piece.t1 - piece.t0);
             }
             if tau > 0.0 && tau < min_expected_events {
                 scale = min_expected_events / tau;
@@ -403,17 +434,14 @@ impl Medium {
         let mut control_depth = [0.0; LANES];
         let mut budget = -rng.uniform_open0().ln();
         while let Some(piece) = walk.next_piece(self) {
-            let (max, min) = Self::shell_extinction(self.bounds_of(&walk, piece.shell), lanes);
-            let control = match estimator {
-                TransmittanceEstimator::ResidualRatioTracking => min,
-                _ => [0.0; LANES],
+            let bounds = lanes.shell(&walk, piece.shell);
+            let (control, residual) = match estimator {
+                TransmittanceEstimator::ResidualRatioTracking => (bounds.min, bounds.residual),
+                _ => ([0.0; LANES], bounds.majorant),
             };
-            // Residual majorant common to all lanes.
-            let residual = (0..lanes.active)
-                .map(|j| max[j] - control[j])
-                .fold(0.0, f64::max);
+            let length = piece.t1 - piece.t0;
             for j in 0..LANES {
-                control_depth[j] += control[j] * (piece.t1 - piece.t0);
+                control_depth[j] += control[j] * length;
             }
             if residual <= 0.0 {
                 continue;
@@ -580,13 +608,10 @@ impl Tracker<'_> {
             }
             self.budget -= available;
             let piece = self.walk.next_piece(self.medium)?;
-            let (max, _) = Medium::shell_extinction(
-                self.medium.bounds_of(&self.walk, piece.shell),
-                self.lanes,
-            );
+            let majorant = self.lanes.shell(&self.walk, piece.shell).majorant;
             self.t = piece.t0;
             self.piece_end = piece.t1;
-            self.majorant = lane_max(&max, self.lanes.active) * self.scale;
+            self.majorant = majorant * self.scale;
         }
     }
 }
