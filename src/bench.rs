@@ -236,6 +236,9 @@ pub struct NoiseRun {
     pub mean_luminance_cd_m2: f64,
     /// Render time of A and B together, s.
     pub seconds: f64,
+    /// CPU time this process got meanwhile over (wall time × threads): below
+    /// 1 when other processes competed for the cores.
+    pub cpu_share: f64,
     pub paths: u64,
     pub passes: [u32; 2],
     pub sky_pixels: usize,
@@ -248,21 +251,53 @@ impl NoiseRun {
     }
 }
 
+/// CPU time (user + system, all threads) of this process so far, s, from
+/// `/proc/self/stat` (Linux, USER_HZ = 100); `None` where unavailable.
+pub fn process_cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    let fields: Vec<&str> = stat.rsplit_once(')')?.1.split_whitespace().collect();
+    // Fields 14 and 15 of proc(5), counted from `state` (field 3) here.
+    let utime: f64 = fields.get(11)?.parse().ok()?;
+    let stime: f64 = fields.get(12)?.parse().ok()?;
+    Some((utime + stime) / 100.0)
+}
+
+/// What [`render_for`] did.
+struct Rendered {
+    film: Film,
+    paths: u64,
+    passes: u32,
+    seconds: f64,
+    /// CPU seconds of this process meanwhile (NaN if unknown).
+    cpu_seconds: f64,
+}
+
 /// Render whole passes of `renderer` for about `seconds`: another pass is
 /// started only while it is expected to end less than half a pass past
 /// `seconds` (so the time spent is the nearest pass boundary; at least one
-/// pass). Returns the film, paths, passes and time.
-fn render_for(renderer: &Renderer, seconds: f64) -> (Film, u64, u32, f64) {
+/// pass).
+fn render_for(renderer: &Renderer, seconds: f64) -> Rendered {
     let mut film = renderer.new_film();
     let mut paths = 0;
     let mut pass = 0u32;
+    let cpu_start = process_cpu_seconds();
     let start = Instant::now();
     loop {
         paths += renderer.render_pass(&mut film, pass, &|| false).paths;
         pass += 1;
         let elapsed = start.elapsed().as_secs_f64();
         if elapsed + 0.5 * elapsed / f64::from(pass) > seconds {
-            return (film, paths, pass, elapsed);
+            let cpu_seconds = match (cpu_start, process_cpu_seconds()) {
+                (Some(a), Some(b)) => b - a,
+                _ => f64::NAN,
+            };
+            return Rendered {
+                film,
+                paths,
+                passes: pass,
+                seconds: elapsed,
+                cpu_seconds,
+            };
         }
     }
 }
@@ -275,25 +310,29 @@ pub fn measure_noise(scene: &Scene, budget_s: f64) -> Result<NoiseRun, String> {
         noise: f64::NAN,
         mean_luminance_cd_m2: f64::NAN,
         seconds: 0.0,
+        cpu_share: 0.0,
         paths: 0,
         passes: [0; 2],
         sky_pixels: 0,
         discarded: 0,
     };
     let mut geometry = None;
+    let mut cpu_seconds = 0.0;
     for (k, &seed) in SEEDS.iter().enumerate() {
         let mut s = scene.clone();
         s.render.seed = seed;
         let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
-        let (film, paths, passes, seconds) = render_for(&renderer, budget_s / 2.0);
-        run.seconds += seconds;
-        run.paths += paths;
-        run.passes[k] = passes;
-        run.discarded += film.discarded;
-        images.push(luminance(&film));
+        let r = render_for(&renderer, budget_s / 2.0);
+        run.seconds += r.seconds;
+        cpu_seconds += r.cpu_seconds;
+        run.paths += r.paths;
+        run.passes[k] = r.passes;
+        run.discarded += r.film.discarded;
+        images.push(luminance(&r.film));
         geometry = Some((renderer.camera().clone(), renderer.sun_direction()));
     }
     let (camera, sun) = geometry.expect("two renders");
+    run.cpu_share = cpu_seconds / (run.seconds * rayon::current_num_threads() as f64);
     let mean: Vec<f64> = images[0]
         .iter()
         .zip(&images[1])
@@ -392,13 +431,19 @@ pub struct AblationRow {
     pub scene: String,
     pub variant: &'static str,
     pub noise_at_budget: f64,
-    /// Noise of the variant over noise of the full renderer.
+    /// Render time the variant actually took (more than the budget where one
+    /// pass each overran it), s.
+    pub seconds: f64,
+    /// Noise of the variant over noise of the full renderer at equal time:
+    /// sqrt(noise_v² t_v / (noise_full² t_full)), which is the plain ratio
+    /// of the noise at budget unless the variant overran the budget.
     pub noise_ratio: f64,
     /// Time the variant needs for the full renderer's noise, relative (= ratio²).
     pub time_ratio: f64,
     pub paths_per_s: f64,
     /// Mean sky luminance of the variant over the full renderer's (≈ 1: unbiased).
     pub mean_ratio: f64,
+    pub cpu_share: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -409,6 +454,9 @@ pub struct ScalingResult {
     pub paths_per_s_all: f64,
     pub speedup: f64,
     pub efficiency: f64,
+    /// CPU time over (wall time × threads) in each configuration.
+    pub cpu_share_1_thread: f64,
+    pub cpu_share_all: f64,
 }
 
 #[derive(Clone, Debug, Serialize)]
@@ -497,13 +545,17 @@ fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
         .map_err(|e| format!("bench: threads: {e}"))
 }
 
-/// Paths per second of `scene` on `pool`, rendering whole passes for about
-/// `seconds`.
-fn throughput(scene: &Scene, pool: &rayon::ThreadPool, seconds: f64) -> Result<(u64, f64), String> {
+/// Paths, seconds and CPU seconds of `scene` on `pool`, rendering whole
+/// passes for about `seconds`.
+fn throughput(
+    scene: &Scene,
+    pool: &rayon::ThreadPool,
+    seconds: f64,
+) -> Result<(u64, f64, f64), String> {
     let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
     Ok(pool.install(|| {
-        let (_, paths, _, elapsed) = render_for(&renderer, seconds);
-        (paths, elapsed)
+        let r = render_for(&renderer, seconds);
+        (r.paths, r.seconds, r.cpu_seconds)
     }))
 }
 
@@ -514,14 +566,16 @@ fn measure_scaling(threads: usize, budget_s: f64) -> Result<ScalingResult, Strin
     let one = thread_pool(1)?;
     let all = thread_pool(threads)?;
     let slot = budget_s / 4.0;
-    let (mut p1, mut s1, mut pn, mut sn) = (0, 0.0, 0, 0.0);
+    let (mut p1, mut s1, mut c1, mut pn, mut sn, mut cn) = (0, 0.0, 0.0, 0, 0.0, 0.0);
     for _ in 0..2 {
-        let (p, s) = throughput(&scene, &one, slot)?;
+        let (p, s, c) = throughput(&scene, &one, slot)?;
         p1 += p;
         s1 += s;
-        let (p, s) = throughput(&scene, &all, slot)?;
+        c1 += c;
+        let (p, s, c) = throughput(&scene, &all, slot)?;
         pn += p;
         sn += s;
+        cn += c;
     }
     let r1 = p1 as f64 / s1;
     let rn = pn as f64 / sn;
@@ -532,6 +586,8 @@ fn measure_scaling(threads: usize, budget_s: f64) -> Result<ScalingResult, Strin
         paths_per_s_all: rn,
         speedup: rn / r1,
         efficiency: rn / r1 / threads as f64,
+        cpu_share_1_thread: c1 / s1,
+        cpu_share_all: cn / (sn * threads as f64),
     })
 }
 
@@ -719,15 +775,18 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
                 let mut s = scene.clone();
                 apply(&mut s);
                 let v = pool.install(|| measure_noise(&s, budget_s))?;
-                let ratio = v.noise / run.noise;
+                let ratio =
+                    (v.noise * v.noise * v.seconds / (run.noise * run.noise * run.seconds)).sqrt();
                 ablation.push(AblationRow {
                     scene: name.clone(),
                     variant,
                     noise_at_budget: v.noise,
+                    seconds: v.seconds,
                     noise_ratio: ratio,
                     time_ratio: ratio * ratio,
                     paths_per_s: v.paths_per_s(),
                     mean_ratio: v.mean_luminance_cd_m2 / run.mean_luminance_cd_m2,
+                    cpu_share: v.cpu_share,
                 });
             }
         }
@@ -762,6 +821,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
         "first_frame_ms: median of Renderer::new + one pass + RGB conversion at the app's default preview size (320x160)".into(),
+        "CPU share: CPU time of this process / (wall time x threads) while rendering; below 100 % means other processes took cores (throughput and noise at budget then understate the renderer)".into(),
     ];
     Ok(Report {
         command: std::env::args().collect::<Vec<_>>().join(" "),
@@ -797,6 +857,14 @@ fn secs(v: f64) -> String {
         format!("{v:.2} s")
     } else {
         format!("{v:.0} s")
+    }
+}
+
+fn num(v: f64, decimals: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.decimals$}")
+    } else {
+        "n/a".into()
     }
 }
 
@@ -857,18 +925,19 @@ pub fn format_report(report: &Report) -> String {
     let _ = writeln!(out);
     let _ = writeln!(
         out,
-        "| scene | sky mask | sky pixels | mean sky Y (cd/m²) | render s | discarded | first-frame set-up |"
+        "| scene | sky mask | sky pixels | mean sky Y (cd/m²) | render s | CPU share | discarded | first-frame set-up |"
     );
-    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|");
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|");
     for d in &report.details {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {:.4e} | {:.2} | {} | {:.1} ms |",
+            "| {} | {} | {} | {:.4e} | {:.2} | {} | {} | {:.1} ms |",
             d.scene,
             d.sky_mask.describe(),
             d.run.sky_pixels,
             d.run.mean_luminance_cd_m2,
             d.run.seconds,
+            pct(d.run.cpu_share),
             d.run.discarded,
             d.first_frame_setup_ms,
         );
@@ -877,24 +946,31 @@ pub fn format_report(report: &Report) -> String {
         let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "Ablation (same budget; noise ratio > 1: the technique helps; time ratio = ratio²; mean ratio ≈ 1: unbiased)\n"
+            "Ablation (same budget; noise ratio > 1: the technique helps; time ratio = ratio²; mean ratio ≈ 1: unbiased; † = one pass each overran the budget, ratio normalised to equal time by the 1/√t law)\n"
         );
         let _ = writeln!(
             out,
-            "| scene | switched off | noise at budget | noise ratio | time ratio | M paths/s | mean ratio |"
+            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | M paths/s | CPU share | mean ratio |"
         );
-        let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|");
+        let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
         for a in &report.ablation {
+            let overran = if a.seconds > 1.1 * report.budget_s {
+                " †"
+            } else {
+                ""
+            };
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {:.2} | {:.2} | {:.3} | {:.3} |",
+                "| {} | {} | {} | {:.1}{overran} | {} | {} | {:.3} | {} | {} |",
                 a.scene,
                 a.variant,
                 pct(a.noise_at_budget),
-                a.noise_ratio,
-                a.time_ratio,
+                a.seconds,
+                num(a.noise_ratio, 2),
+                num(a.time_ratio, 2),
                 a.paths_per_s / 1e6,
-                a.mean_ratio
+                pct(a.cpu_share),
+                num(a.mean_ratio, 3)
             );
         }
     }
@@ -902,14 +978,17 @@ pub fn format_report(report: &Report) -> String {
         let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "Scaling ({}, 1 vs {} threads, alternated 1/N/1/N): {:.3} → {:.3} M paths/s, speedup {:.2}, efficiency {:.1} % (target ≥ 85 %: {})",
+            "Scaling ({}, 1 vs {} threads, alternated 1/N/1/N): {:.3} → {:.3} M paths/s, speedup {:.2}, efficiency {:.1} % (target ≥ 85 %: {}); CPU share {} (1 thread), {} ({} threads)",
             s.scene,
             s.threads,
             s.paths_per_s_1_thread / 1e6,
             s.paths_per_s_all / 1e6,
             s.speedup,
             s.efficiency * 100.0,
-            yes_no(s.efficiency >= EFFICIENCY_TARGET)
+            yes_no(s.efficiency >= EFFICIENCY_TARGET),
+            pct(s.cpu_share_1_thread),
+            pct(s.cpu_share_all),
+            s.threads
         );
     }
     if let Some(mem) = &report.memory {
@@ -1162,6 +1241,10 @@ mod tests {
             assert!(r.first_frame_ms > 0.0);
         }
         assert_eq!(report.ablation.len(), ablation_variants().len());
+        if process_cpu_seconds().is_some() {
+            let share = report.details[0].run.cpu_share;
+            assert!(share > 0.0 && share < 1.5, "{share}");
+        }
         assert!(report.scaling.is_some());
         assert!(format_report(&report).contains("| midday |"));
     }

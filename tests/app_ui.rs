@@ -342,6 +342,42 @@ fn slider_change_latency_at_the_default_preview_size() {
     assert!(latencies[latencies.len() / 2] < Duration::from_secs(10));
 }
 
+#[test]
+fn showing_the_controls_leaves_the_scene_alone() {
+    let mut scene = Scene::preset("midday").unwrap();
+    scene.sun.elevation_deg = 12.345_678;
+    scene.sun.azimuth_deg = 123.456_789;
+    scene.observer.altitude_m = 1_234.5;
+    scene.atmosphere.ground_albedo = 0.123_456;
+    let mut state = AppState::new(scene.clone());
+    state.set_preview_scale(0.25);
+    state.set_target_spp(2);
+    let mut harness = harness(SkyApp::with_state(state));
+    wait_for_current_frame(&mut harness);
+    let epoch = harness.state().service_epoch();
+    harness.run_steps(10);
+    assert_eq!(harness.state().state().scene(), &scene);
+    assert_eq!(
+        harness.state().service_epoch(),
+        epoch,
+        "no restart without input"
+    );
+}
+
+#[test]
+fn run_app_explains_itself_without_a_display() {
+    let err = skyrender::app::run_app(Some("noon"), None, 5.0).unwrap_err();
+    assert!(err.contains("midday"), "{err}");
+    let no_display = ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .all(|v| std::env::var_os(v).is_none_or(|s| s.is_empty()));
+    if no_display {
+        let err = skyrender::app::run_app(None, None, 5.0).unwrap_err();
+        assert_eq!(err, skyrender::app::NO_DISPLAY_MESSAGE);
+        assert!(!err.contains('\n') && err.contains("skyrender render"));
+    }
+}
+
 /// The whole window, rendered by wgpu (lavapipe where there is no GPU):
 /// every control group with its units. The sky image (whose noise changes
 /// with any change to the renderer) and the status bar (timings) are masked;

@@ -1011,7 +1011,7 @@ impl SkyApp {
                     Slider::new(&mut display.exposure_ev, lo..=hi)
                         .text("Exposure")
                         .suffix(" EV")
-                        .fixed_decimals(1),
+                        .custom_formatter(|v, _| format!("{v:.1}")),
                 )
                 .on_hover_text("Display value = luminance (cd/m²) × 2^EV, then the tone curve")
                 .on_disabled_hover_text("Set automatically; untick Auto exposure to adjust");
@@ -1042,7 +1042,7 @@ impl SkyApp {
                         Slider::new(&mut scale, lo..=hi)
                             .text("Preview scale")
                             .suffix("×")
-                            .fixed_decimals(2),
+                            .custom_formatter(|v, _| format!("{v:.2}")),
                     )
                     .on_hover_text(format!(
                         "Preview resolution relative to 320×160 (now {w}×{h} px); lower is faster"
@@ -1257,13 +1257,16 @@ fn slider(
     suffix: &str,
     tooltip: &str,
 ) -> Option<f64> {
+    // Only the text is rounded: egui's `max_decimals` would round the value
+    // itself, changing the scene just by showing it.
+    let decimals = if hi - lo >= 100.0 { 1 } else { 2 };
     let mut v = value;
     let response = ui
         .add(
             Slider::new(&mut v, lo..=hi)
                 .text(text)
                 .suffix(suffix)
-                .max_decimals(if hi - lo >= 100.0 { 1 } else { 2 }),
+                .custom_formatter(move |v, _| format!("{v:.decimals$}")),
         )
         .on_hover_text(tooltip);
     (response.changed() && v != value).then_some(v)

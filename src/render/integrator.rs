@@ -14,9 +14,9 @@
 //!   σ̄ and its probability.
 //!
 //! Absorption never terminates a path; it only weights it. Russian roulette
-//! ends paths without bias. On camera rays the majorant is scaled up so that
-//! at least a few collisions (and so next-event estimates) fall along the ray
-//! where the air is dense ("forced" in-scattering samples).
+//! ends paths without bias. Optionally, on camera rays the majorant is scaled
+//! up so that at least a few collisions (and so next-event estimates) fall
+//! along the ray where the air is dense ("forced" in-scattering samples).
 //!
 //! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
 //! Every random decision (real vs. null, phase-function component and angle)
@@ -46,7 +46,9 @@ pub struct IntegratorOptions {
     pub shadow_transmittance: TransmittanceEstimator,
     /// Next-event estimation toward the sun.
     pub next_event_estimation: bool,
-    /// Minimum expected number of tentative collisions on camera rays (0 = off).
+    /// Minimum expected number of tentative collisions on camera rays (0 = off,
+    /// the default: the benchmark's ablation found it costs more time than it
+    /// saves variance except at midday; see BENCHMARKS.md).
     pub primary_min_collisions: f64,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
@@ -62,7 +64,7 @@ impl Default for IntegratorOptions {
             tight_majorants: true,
             shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
             next_event_estimation: true,
-            primary_min_collisions: 4.0,
+            primary_min_collisions: 0.0,
             russian_roulette: true,
             max_scattering_order: None,
         }

@@ -26,6 +26,10 @@ use crate::rng::Rng;
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
 
+/// (√5 − 1)/2: the additive recurrence with this step is the most evenly
+/// spread 1-D sequence (Weyl; the three-distance theorem).
+const GOLDEN_RATIO_CONJUGATE: f64 = 0.618_033_988_749_894_8;
+
 /// A scene made ready to render.
 pub struct Renderer {
     pub scene: Scene,
@@ -100,14 +104,13 @@ impl Renderer {
     /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)
     /// through the importance CDF, so each lane is distributed by the CMF-based
     /// density and the lanes are stratified (Wilkie et al. 2014).
-    fn sample_lanes(&self, rng: &mut Rng) -> (SpectralLanes, Lanes) {
+    fn sample_lanes(&self, u0: f64) -> (SpectralLanes, Lanes) {
         let n = self
             .scene
             .render
             .integrator
             .wavelengths_per_path
             .clamp(1, LANES);
-        let u0 = rng.uniform();
         let mut wavelengths = [0.0; LANES];
         let mut pdfs = [0.0; LANES];
         for k in 0..LANES {
@@ -140,7 +143,14 @@ impl Renderer {
         let Some(dir) = self.camera.direction(px, py) else {
             return Some([0.0; 3]);
         };
-        let (lanes, pdfs) = self.sample_lanes(&mut rng);
+        // Across the passes of one pixel, u₀ follows the golden-ratio additive
+        // recurrence from a random per-pixel start (a Cranley–Patterson rotated
+        // low-discrepancy sequence): every sample is still uniform, so the
+        // pixel mean stays unbiased, but the spectrum is covered evenly and
+        // colour noise falls faster than with independent wavelengths.
+        let start = Rng::new(self.scene.render.seed, pixel).uniform();
+        let u0 = (start + f64::from(pass) * GOLDEN_RATIO_CONJUGATE).fract();
+        let (lanes, pdfs) = self.sample_lanes(u0);
         let radiance = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
         let n = lanes.active;
         let mut xyz = [0.0; 3];
