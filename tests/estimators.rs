@@ -276,9 +276,9 @@ fn estimator_variants_agree_statistically() {
             },
         ),
         (
-            "no forced collisions",
+            "forced sunlit collisions",
             IntegratorOptions {
-                primary_min_collisions: 0.0,
+                primary_min_collisions: 4.0,
                 ..Default::default()
             },
         ),
@@ -325,4 +325,40 @@ fn one_wavelength_per_path_agrees_with_four() {
         a[0],
         b[0]
     );
+}
+
+#[test]
+fn sunlit_collision_inflation_is_unbiased_in_twilight() {
+    // With the sun below the horizon, extra collisions go only to the sunlit
+    // part of the view ray; the expectation must not move.
+    let atmosphere = Atmosphere::new(AtmosphereParams::default());
+    let medium = Medium::new(&atmosphere);
+    let sun_dir = direction_from_az_el(270.0, -4.0);
+    let origin = DVec3::new(0.0, 0.0, atmosphere.params.planet_radius_m + 2.0);
+    let lanes = unit_sun_lanes(&medium, [440.0, 520.0, 600.0, 680.0]);
+    for view in [
+        direction_from_az_el(90.0, 5.0),
+        direction_from_az_el(270.0, 40.0),
+    ] {
+        let run = |min: f64| {
+            let options = IntegratorOptions {
+                primary_min_collisions: min,
+                ..IntegratorOptions::default()
+            };
+            let integrator = Integrator::new(&medium, &options, sun_dir);
+            estimate(20_000, |rng| integrator.radiance(origin, view, &lanes, rng))
+        };
+        let (a, a_se) = run(0.0);
+        let (b, b_se) = run(4.0);
+        for j in 0..LANES {
+            let combined = a_se[j].hypot(b_se[j]);
+            assert!(
+                (a[j] - b[j]).abs() < 4.0 * combined,
+                "lane {j}: {} vs {} ± {combined}",
+                a[j],
+                b[j]
+            );
+            assert!(b[j] > 0.0);
+        }
+    }
 }

@@ -167,14 +167,17 @@ impl<'a> Integrator<'a> {
         loop {
             let mut scattered = false;
             if let Some(span) = self.medium.span(origin, dir) {
-                let min_events = if depth == 0 {
-                    opts.primary_min_collisions
-                } else {
-                    0.0
-                };
-                let mut tracker =
-                    self.medium
-                        .tracker(origin, dir, span, lanes, self.bounds, min_events);
+                let mut tracker = self
+                    .medium
+                    .tracker(origin, dir, span, lanes, self.bounds, 0.0);
+                if depth == 0 && opts.primary_min_collisions > 0.0 {
+                    tracker = tracker.inflate_sunlit(
+                        origin,
+                        dir,
+                        self.sun_direction,
+                        opts.primary_min_collisions,
+                    );
+                }
                 while let Some(collision) = tracker.next(rng) {
                     let x = origin + dir * collision.t;
                     let c = self.medium.coefficients(x.length(), lanes);

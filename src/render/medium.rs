@@ -343,6 +343,26 @@ impl Medium {
         })
     }
 
+    /// Whether any of a piece's ends or midpoint lies outside the Earth's
+    /// geometric shadow cylinder (slightly narrowed for the disc's penumbra).
+    /// Only a sampling-rate heuristic: it never decides a contribution.
+    fn piece_possibly_sunlit(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        sun_direction: DVec3,
+        piece: Piece,
+    ) -> bool {
+        let shadow_radius = self.planet_radius_m * 0.999;
+        [piece.t0, 0.5 * (piece.t0 + piece.t1), piece.t1]
+            .into_iter()
+            .any(|t| {
+                let x = origin + dir * t;
+                let along = x.dot(sun_direction);
+                along >= 0.0 || x.length_squared() - along * along > shadow_radius * shadow_radius
+            })
+    }
+
     fn shell_index(&self, radius_m: f64) -> usize {
         self.shell_radii_m
             .partition_point(|&r| r <= radius_m)
@@ -405,6 +425,7 @@ impl Medium {
             lanes,
             walk,
             scale,
+            sunlit: None,
             t: span.t_enter,
             piece_end: span.t_enter,
             majorant: 0.0,
@@ -580,6 +601,9 @@ pub struct Tracker<'a> {
     lanes: &'a SpectralLanes,
     walk: ShellWalk,
     scale: f64,
+    /// Ray origin, direction and sun direction when only possibly sunlit
+    /// pieces are scaled.
+    sunlit: Option<(DVec3, DVec3, DVec3)>,
     t: f64,
     piece_end: f64,
     majorant: f64,
@@ -588,6 +612,37 @@ pub struct Tracker<'a> {
 }
 
 impl Tracker<'_> {
+    /// Scale up the majorant only on pieces of the ray that may be sunlit,
+    /// so they get at least `min_expected_events` collisions in all. Any
+    /// majorant ≥ the extinction keeps the estimator unbiased; this only moves
+    /// next-event estimates out of the Earth's shadow (twilight, night side).
+    #[must_use]
+    pub fn inflate_sunlit(
+        mut self,
+        origin: DVec3,
+        dir: DVec3,
+        sun_direction: DVec3,
+        min_expected_events: f64,
+    ) -> Self {
+        let mut probe = self.walk.clone();
+        let mut tau = 0.0;
+        while let Some(piece) = probe.next_piece(self.medium) {
+            if self
+                .medium
+                .piece_possibly_sunlit(origin, dir, sun_direction, piece)
+            {
+                tau += self.lanes.shell(&probe, piece.shell).majorant * (piece.t1 - piece.t0);
+            }
+        }
+        self.scale = if tau > 0.0 && tau < min_expected_events {
+            min_expected_events / tau
+        } else {
+            1.0
+        };
+        self.sunlit = Some((origin, dir, sun_direction));
+        self
+    }
+
     /// The next tentative collision, or `None` at the end of the span.
     pub fn next(&mut self, rng: &mut Rng) -> Option<Collision> {
         if self.budget < 0.0 {
@@ -611,7 +666,10 @@ impl Tracker<'_> {
             let majorant = self.lanes.shell(&self.walk, piece.shell).majorant;
             self.t = piece.t0;
             self.piece_end = piece.t1;
-            self.majorant = majorant * self.scale;
+            let lit = self
+                .sunlit
+                .is_none_or(|(o, d, sun)| self.medium.piece_possibly_sunlit(o, d, sun, piece));
+            self.majorant = if lit { majorant * self.scale } else { majorant };
         }
     }
 }
