@@ -54,11 +54,10 @@ fn medium_lookups(c: &mut Criterion) {
         let span = f.medium.span(f.ground, dir).expect("inside");
         for (bounds_label, bounds) in [("tight", Bounds::Tight), ("global", Bounds::Global)] {
             c.bench_function(
-                &format!("medium/tracker_walk/{label}/{bounds_label}_min4"),
+                &format!("medium/tracker_walk/{label}/{bounds_label}"),
                 |b| {
                     b.iter(|| {
-                        let mut tracker =
-                            f.medium.tracker(f.ground, dir, span, &f.lanes, bounds, 4.0);
+                        let mut tracker = f.medium.tracker(f.ground, dir, span, &f.lanes, bounds);
                         let mut n = 0u32;
                         while let Some(c) = tracker.next(&mut rng) {
                             n += 1;

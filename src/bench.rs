@@ -497,7 +497,8 @@ pub struct Report {
 /// An ablation variant: its name and how it changes the scene.
 pub type Variant = (&'static str, fn(&mut Scene));
 
-/// The ablation variants: each switches one technique off.
+/// The ablation variants: each switches one technique off, or swaps in an
+/// alternative the defaults were chosen against.
 pub fn ablation_variants() -> Vec<Variant> {
     vec![
         ("wavelengths_per_path=1", |s| {
@@ -515,8 +516,14 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("next_event_estimation=false", |s| {
             s.render.integrator.next_event_estimation = false;
         }),
-        ("primary_min_collisions=0", |s| {
-            s.render.integrator.primary_min_collisions = 0.0;
+        ("sunlight_samples=1", |s| {
+            s.render.integrator.sunlight_samples = 1;
+        }),
+        ("sunlight_samples=2", |s| {
+            s.render.integrator.sunlight_samples = 2;
+        }),
+        ("sun_lobe=0.5", |s| {
+            s.render.integrator.sun_lobe = 0.5;
         }),
         ("russian_roulette=false", |s| {
             s.render.integrator.russian_roulette = false;

@@ -297,12 +297,17 @@ impl Scene {
                 ),
             ));
         }
-        check_range(
-            "primary min collisions",
-            i.primary_min_collisions,
-            0.0,
-            1_000.0,
-        )?;
+        let most = crate::render::integrator::MAX_SUNLIGHT_SAMPLES;
+        if i.sunlight_samples as usize > most {
+            return Err(SceneError::new(
+                "sunlight samples",
+                format!(
+                    "{} is outside the valid range 0 to {most}",
+                    i.sunlight_samples
+                ),
+            ));
+        }
+        check_range("sun lobe", i.sun_lobe, 0.0, 1.0)?;
         Ok(())
     }
 }

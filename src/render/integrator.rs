@@ -14,9 +14,14 @@
 //!   σ̄ and its probability.
 //!
 //! Absorption never terminates a path; it only weights it. Russian roulette
-//! ends paths without bias. Optionally, on camera rays the majorant is scaled
-//! up so that at least a few collisions (and so next-event estimates) fall
-//! along the ray where the air is dense ("forced" in-scattering samples).
+//! ends paths without bias.
+//!
+//! **Alternatives kept as options** (measured slower at equal time on the
+//! benchmark scenes; see `BENCHMARKS.md`): `sunlight_samples` replaces the
+//! collisions by points drawn from the expected sunlight along each segment
+//! ([`super::sunlight`]; some 100× less variance for single scattering at
+//! twilight, but ~15× the cost per path), and `sun_lobe` mixes a lobe about
+//! the sun into the scattering directions.
 //!
 //! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
 //! Every random decision (real vs. null, phase-function component and angle)
@@ -30,6 +35,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
+use super::sunlight::InScatterDistribution;
 use crate::physics::{rayleigh, sun};
 use crate::rng::Rng;
 
@@ -46,10 +52,14 @@ pub struct IntegratorOptions {
     pub shadow_transmittance: TransmittanceEstimator,
     /// Next-event estimation toward the sun.
     pub next_event_estimation: bool,
-    /// Minimum expected number of tentative collisions on camera rays (0 = off,
-    /// the default: the benchmark's ablation found it costs more time than it
-    /// saves variance except at midday; see BENCHMARKS.md).
-    pub primary_min_collisions: f64,
+    /// Next-event points per path segment drawn from the expected-sunlight
+    /// density of [`super::sunlight`] (stratified; one of them also carries
+    /// the path on), 0–8. 0 (the default) = delta tracking with a next-event
+    /// estimate at every tentative collision.
+    pub sunlight_samples: u32,
+    /// Share of scattering directions drawn from a lobe about the sun
+    /// (0–1; the rest follow the phase function; default 0).
+    pub sun_lobe: f64,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -64,7 +74,8 @@ impl Default for IntegratorOptions {
             tight_majorants: true,
             shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
             next_event_estimation: true,
-            primary_min_collisions: 0.0,
+            sunlight_samples: 0,
+            sun_lobe: 0.0,
             russian_roulette: true,
             max_scattering_order: None,
         }
@@ -77,6 +88,11 @@ pub type Radiance = Lanes;
 /// Scattering vertices become paths longer than this only through Russian
 /// roulette with survival ≤ 0.9, so paths end with probability one.
 const ROULETTE_CAP_DEPTH: u32 = 64;
+/// Concentration of the sun lobe (κ = 8: half its samples within ≈ 24° of
+/// the sun).
+const SUN_LOBE_KAPPA: f64 = 8.0;
+/// Most in-scattering points on one segment.
+pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
 /// Ground vertices sit this far above the surface, m.
 const SURFACE_OFFSET_M: f64 = 1e-3;
 
@@ -154,30 +170,319 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         rng: &mut Rng,
     ) -> Radiance {
+        let mut radiance: Lanes = [0.0; LANES];
+        if self.options.sunlight_samples > 0 && self.options.next_event_estimation {
+            self.trace_sunlit(origin, dir, lanes, &mut radiance, rng);
+        } else {
+            self.trace(origin, dir, 0, [1.0; LANES], lanes, &mut radiance, rng);
+        }
+        radiance
+    }
+
+    /// A path whose every segment is estimated through in-scattering points
+    /// drawn from [`InScatterDistribution`] (the expected sunlight along the
+    /// segment) instead of delta-tracked collisions. For a segment from x
+    /// along ω,
+    ///
+    /// L(x, ω) = ∫ T(0,t) σ_s(t) ∫ p L_in dω' dt + T(0,t_end) L_end.
+    ///
+    /// Every point gets a next-event estimate toward the sun, weighted by the
+    /// point's density and an unbiased transmittance estimate T̂(0,t); one
+    /// point, picked uniformly (so its marginal density is the density
+    /// itself), may continue the path into the diffuse light. The end of the
+    /// segment adds the ground's direct light or, on camera rays, the sun's
+    /// disc, weighted by T̂(0,t_end). Where the segment meets the ground the
+    /// path continues either from the medium point or from the ground, chosen
+    /// by their expected shares (weights divided by the choice's probability).
+    /// Every transmittance on the segment comes from one tracking pass.
+    fn trace_sunlit(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) {
+        let mut vertex = Some((origin, dir, [1.0; LANES]));
+        let mut depth = 0;
+        while let Some((origin, dir, beta)) = vertex {
+            vertex = self.sunlit_segment(origin, dir, depth, &beta, lanes, radiance, rng);
+            depth += 1;
+            let Some((_, _, beta)) = &mut vertex else {
+                break;
+            };
+            if self.options.russian_roulette && depth >= 2 {
+                let mut survive = beta[..lanes.active]
+                    .iter()
+                    .copied()
+                    .fold(0.0, f64::max)
+                    .min(1.0);
+                if depth >= ROULETTE_CAP_DEPTH {
+                    survive = survive.min(0.9);
+                }
+                if rng.uniform() >= survive {
+                    break;
+                }
+                for b in beta.iter_mut() {
+                    *b /= survive;
+                }
+            }
+        }
+    }
+
+    /// One segment of [`Self::trace_sunlit`] after `depth` scatterings with
+    /// weight `beta`; returns the next vertex (position, direction, weight).
+    #[allow(clippy::too_many_arguments)]
+    fn sunlit_segment(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        depth: u32,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) -> Option<(DVec3, DVec3, Lanes)> {
+        let opts = self.options;
+        let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
+        let Some(span) = self.medium.span(origin, dir) else {
+            if depth == 0 {
+                self.add_sun_disc(dir, beta, lanes, radiance);
+            }
+            return None;
+        };
+        let mu_sun = dir.dot(self.sun_direction);
+        let phase_rayleigh: Lanes =
+            std::array::from_fn(|j| rayleigh::phase(mu_sun, lanes.rayleigh_gamma[j]));
+        let phase_aerosol = self
+            .medium
+            .aerosol_phase
+            .eval(mu_sun, self.medium.aerosol_g);
+        let distribution = if depth < max_order {
+            InScatterDistribution::new(
+                self.medium,
+                self.medium.sun_columns(),
+                lanes,
+                origin,
+                dir,
+                span,
+                self.sun_direction,
+                &phase_rayleigh,
+                phase_aerosol,
+            )
+        } else {
+            None
+        };
+        let n = if distribution.is_some() {
+            (opts.sunlight_samples as usize).min(MAX_SUNLIGHT_SAMPLES)
+        } else {
+            0
+        };
+        // Stratified in the distribution's cumulative probability, so the
+        // points come out in ascending order for the transmittance pass.
+        let mut points = [(0.0, [0.0; LANES]); MAX_SUNLIGHT_SAMPLES];
+        let mut densities = [0.0; MAX_SUNLIGHT_SAMPLES];
+        if let Some(d) = &distribution {
+            for k in 0..n {
+                let (t, pdf) = d.sample((k as f64 + rng.uniform()) / n as f64);
+                points[k].0 = t;
+                densities[k] = pdf;
+            }
+        }
+        let tr_end = self.medium.transmittance_along(
+            origin,
+            dir,
+            span,
+            lanes,
+            opts.shadow_transmittance,
+            self.bounds,
+            &mut points[..n],
+            rng,
+        );
+        // Where the path goes on: from the medium, from the ground, or not.
+        let goes_on = depth + 1 < max_order;
+        let ground_goes_on = goes_on && span.hits_ground && self.medium.ground_albedo > 0.0;
+        let p_medium = match (&distribution, goes_on && n > 0) {
+            (Some(d), true) if ground_goes_on => {
+                let (medium, ground) = d.shares(self.medium.ground_albedo);
+                (medium / (medium + ground)).clamp(0.05, 0.95)
+            }
+            // Without Russian roulette the path must still end: go on with
+            // the expected scattered fraction, as an analog path would.
+            (Some(d), true) if !opts.russian_roulette => d.shares(0.0).0.clamp(0.05, 1.0),
+            (Some(_), true) => 1.0,
+            _ => 0.0,
+        };
+        let continue_from = if rng.uniform() < p_medium {
+            Some(((rng.uniform() * n as f64) as usize).min(n - 1))
+        } else {
+            None
+        };
+        let mut next = None;
+        for k in 0..n {
+            let (t, tr_view) = points[k];
+            if densities[k] <= 0.0 {
+                continue;
+            }
+            let x = origin + dir * t;
+            let c = self.medium.coefficients(x.length(), lanes);
+            let to_sun = self.sample_sun_direction(rng);
+            let mu = dir.dot(to_sun);
+            let tr_sun = self.shadow(x, to_sun, lanes, rng);
+            let weight = 1.0 / (n as f64 * densities[k]);
+            for j in 0..LANES {
+                radiance[j] += beta[j]
+                    * tr_view[j]
+                    * weight
+                    * self.scattering_phase(&c, lanes, j, mu)
+                    * lanes.sun_irradiance[j]
+                    * tr_sun[j];
+            }
+            if continue_from == Some(k) {
+                let (new_dir, pdf) = self.sample_scatter_direction(dir, &c, lanes, rng);
+                let mu = dir.dot(new_dir);
+                let new_beta = std::array::from_fn(|j| {
+                    beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
+                        / (densities[k] * pdf * p_medium)
+                });
+                next = Some((x, new_dir, new_beta));
+            }
+        }
+        let through: Lanes = std::array::from_fn(|j| beta[j] * tr_end[j]);
+        if span.hits_ground {
+            let normal = (origin + dir * span.t_exit).normalize();
+            let bounce = self.ground_vertex(normal, depth, &through, lanes, radiance, rng);
+            if continue_from.is_none() && ground_goes_on {
+                next = bounce.map(|(x, d, b)| (x, d, b.map(|v| v / (1.0 - p_medium))));
+            }
+        } else if depth == 0 {
+            self.add_sun_disc(dir, &through, lanes, radiance);
+        }
+        next
+    }
+
+    /// The sun's disc seen along `dir` through transmittance `beta`.
+    fn add_sun_disc(&self, dir: DVec3, beta: &Lanes, lanes: &SpectralLanes, radiance: &mut Lanes) {
+        if dir.dot(self.sun_direction) >= self.cos_sun_radius {
+            let l_sun = self.sun_radiance(lanes);
+            for j in 0..LANES {
+                radiance[j] += beta[j] * l_sun[j];
+            }
+        }
+    }
+
+    /// A Lambertian ground vertex with normal `normal`, reached after `depth`
+    /// scatterings with weight `beta`: adds the sun's direct light and
+    /// returns the bounce (vertex, direction, weight) if the path goes on.
+    fn ground_vertex(
+        &self,
+        normal: DVec3,
+        depth: u32,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) -> Option<(DVec3, DVec3, Lanes)> {
+        let opts = self.options;
+        let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
+        let x = normal * (self.medium.planet_radius_m + SURFACE_OFFSET_M);
+        let albedo = self.medium.ground_albedo;
+        if opts.next_event_estimation && depth < max_order {
+            let to_sun = self.sample_sun_direction(rng);
+            let cos = normal.dot(to_sun);
+            if cos > 0.0 {
+                let tr = self.shadow(x, to_sun, lanes, rng);
+                for j in 0..LANES {
+                    radiance[j] += beta[j] * albedo / PI * cos * lanes.sun_irradiance[j] * tr[j];
+                }
+            }
+        }
+        if depth + 1 >= max_order || albedo <= 0.0 {
+            return None;
+        }
+        // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
+        Some((
+            x,
+            cosine_sample_hemisphere(normal, rng),
+            beta.map(|b| b * albedo),
+        ))
+    }
+
+    /// A scattering direction and its density (per sr): with probability
+    /// `sun_lobe`, from a von Mises–Fisher lobe about the sun (where the
+    /// brightest skylight is: the aureole by day, the glow over the sunward
+    /// horizon at twilight), else from the lane-averaged phase function; the
+    /// density is the mixture's (one-sample MIS, balance heuristic).
+    fn sample_scatter_direction(
+        &self,
+        dir: DVec3,
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> (DVec3, f64) {
+        let alpha = self.options.sun_lobe;
+        let new_dir = if rng.uniform() < alpha {
+            // Inverse-CDF sampling of the lobe's cosine (Wenzel 2009).
+            let u = rng.uniform();
+            let cos = (1.0 + (u + (1.0 - u) * (-2.0 * SUN_LOBE_KAPPA).exp()).ln() / SUN_LOBE_KAPPA)
+                .clamp(-1.0, 1.0);
+            let sin = (1.0 - cos * cos).max(0.0).sqrt();
+            let phi = 2.0 * PI * rng.uniform();
+            let (t, b) = self.sun_frame;
+            (t * (sin * phi.cos()) + b * (sin * phi.sin()) + self.sun_direction * cos).normalize()
+        } else {
+            self.sample_phase_direction(dir, c, lanes, rng)
+        };
+        let phase = self.phase_mixture_pdf(c, lanes, dir.dot(new_dir));
+        let pdf = if alpha > 0.0 {
+            let lobe = SUN_LOBE_KAPPA / (2.0 * PI * (1.0 - (-2.0 * SUN_LOBE_KAPPA).exp()))
+                * (SUN_LOBE_KAPPA * (new_dir.dot(self.sun_direction) - 1.0)).exp();
+            (1.0 - alpha) * phase + alpha * lobe
+        } else {
+            phase
+        };
+        (new_dir, pdf)
+    }
+
+    /// Density of [`Self::sample_phase_direction`] at cosine `mu`, per sr.
+    fn phase_mixture_pdf(
+        &self,
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        mu: f64,
+    ) -> f64 {
+        (0..lanes.active)
+            .map(|k| self.scattering_phase(c, lanes, k, mu) / c.scattering(k))
+            .sum::<f64>()
+            / lanes.active as f64
+    }
+
+    /// Continue a path from `origin` along `dir` after `depth` scatterings
+    /// with weight `beta`, adding what it finds to `radiance`.
+    #[allow(clippy::too_many_arguments)]
+    fn trace(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        depth: u32,
+        beta: Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) {
         let active = lanes.active;
         let inv_active = 1.0 / active as f64;
         let opts = self.options;
-        let mut beta: Lanes = [1.0; LANES];
-        let mut radiance: Lanes = [0.0; LANES];
+        let mut beta = beta;
         let mut origin = origin;
         let mut dir = dir;
-        let mut depth: u32 = 0;
+        let mut depth = depth;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
 
         loop {
             let mut scattered = false;
             if let Some(span) = self.medium.span(origin, dir) {
-                let mut tracker = self
-                    .medium
-                    .tracker(origin, dir, span, lanes, self.bounds, 0.0);
-                if depth == 0 && opts.primary_min_collisions > 0.0 {
-                    tracker = tracker.inflate_sunlit(
-                        origin,
-                        dir,
-                        self.sun_direction,
-                        opts.primary_min_collisions,
-                    );
-                }
+                let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
                 while let Some(collision) = tracker.next(rng) {
                     let x = origin + dir * collision.t;
                     let c = self.medium.coefficients(x.length(), lanes);
@@ -209,12 +514,8 @@ impl<'a> Integrator<'a> {
                         * inv_active;
                     let p_scatter = p_scatter.clamp(0.0, 1.0);
                     if rng.uniform() < p_scatter {
-                        let new_dir = self.sample_phase_direction(dir, &c, lanes, rng);
+                        let (new_dir, pdf) = self.sample_scatter_direction(dir, &c, lanes, rng);
                         let mu = dir.dot(new_dir);
-                        let pdf = (0..active)
-                            .map(|k| self.scattering_phase(&c, lanes, k, mu) / c.scattering(k))
-                            .sum::<f64>()
-                            * inv_active;
                         for (j, b) in beta.iter_mut().enumerate() {
                             *b *= self.scattering_phase(&c, lanes, j, mu)
                                 / (majorant * p_scatter * pdf);
@@ -231,42 +532,23 @@ impl<'a> Integrator<'a> {
                 }
                 if !scattered && span.hits_ground {
                     let normal = (origin + dir * span.t_exit).normalize();
-                    let x = normal * (self.medium.planet_radius_m + SURFACE_OFFSET_M);
-                    let albedo = self.medium.ground_albedo;
-                    if opts.next_event_estimation && depth < max_order {
-                        let to_sun = self.sample_sun_direction(rng);
-                        let cos = normal.dot(to_sun);
-                        if cos > 0.0 {
-                            let tr = self.shadow(x, to_sun, lanes, rng);
-                            for j in 0..LANES {
-                                radiance[j] +=
-                                    beta[j] * albedo / PI * cos * lanes.sun_irradiance[j] * tr[j];
-                            }
+                    match self.ground_vertex(normal, depth, &beta, lanes, radiance, rng) {
+                        Some((x, new_dir, new_beta)) => {
+                            origin = x;
+                            dir = new_dir;
+                            beta = new_beta;
+                            depth += 1;
+                            scattered = true;
                         }
+                        None => break,
                     }
-                    if depth + 1 >= max_order || albedo <= 0.0 {
-                        break;
-                    }
-                    // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
-                    for b in &mut beta {
-                        *b *= albedo;
-                    }
-                    origin = x;
-                    dir = cosine_sample_hemisphere(normal, rng);
-                    depth += 1;
-                    scattered = true;
                 }
             }
             if !scattered {
                 // Escaped to space. The disc is counted here only where no
                 // next-event estimate already accounted for it.
-                if (depth == 0 || !opts.next_event_estimation)
-                    && dir.dot(self.sun_direction) >= self.cos_sun_radius
-                {
-                    let l_sun = self.sun_radiance(lanes);
-                    for j in 0..LANES {
-                        radiance[j] += beta[j] * l_sun[j];
-                    }
+                if depth == 0 || !opts.next_event_estimation {
+                    self.add_sun_disc(dir, &beta, lanes, radiance);
                 }
                 break;
             }
@@ -286,7 +568,6 @@ impl<'a> Integrator<'a> {
                 break;
             }
         }
-        radiance
     }
 
     /// Sample a new direction from the lane-averaged phase function.

@@ -90,6 +90,8 @@ pub struct Medium {
     pub aerosol_albedo: f64,
     pub aerosol_phase: aerosol::PhaseModel,
     ozone_on: bool,
+    /// Column amounts toward the sun (a sampling aid; built with the medium).
+    sun_columns: Option<super::sunlight::SunColumns>,
 }
 
 /// Scattering and absorption coefficients at a point, m⁻¹, per lane.
@@ -204,6 +206,17 @@ impl SpectralLanes {
         lanes
     }
 
+    /// Ozone cross-section of lane `j` at a typical stratospheric
+    /// temperature (≈ 223 K), m²: for sampling densities, not for estimates.
+    pub fn ozone_reference_m2(&self, j: usize) -> f64 {
+        self.ozone_m2[j][3]
+    }
+
+    /// Aerosol extinction of lane `j` relative to 340 nm.
+    pub fn aerosol_extinction_factor(&self, j: usize) -> f64 {
+        self.aerosol_factor[j]
+    }
+
     fn shell(&self, walk: &ShellWalk, shell: usize) -> &ShellExtinction {
         if walk.global {
             &self.global
@@ -269,7 +282,7 @@ impl Medium {
             .windows(2)
             .map(|w| bounds_between(w[0], w[1]))
             .collect();
-        Self {
+        let mut medium = Self {
             planet_radius_m: p.planet_radius_m,
             top_radius_m: p.planet_radius_m + top_m,
             global: bounds_between(0.0, top_m),
@@ -281,7 +294,15 @@ impl Medium {
             aerosol_albedo: p.aerosol_albedo,
             aerosol_phase: p.aerosol_phase,
             ozone_on: p.ozone,
-        }
+            sun_columns: None,
+        };
+        medium.sun_columns = Some(super::sunlight::SunColumns::new(&medium));
+        medium
+    }
+
+    /// Column amounts toward the sun over altitude × solar zenith.
+    pub fn sun_columns(&self) -> Option<&super::sunlight::SunColumns> {
+        self.sun_columns.as_ref()
     }
 
     /// Coefficients at distance `radius_m` from the planet's centre.
@@ -306,6 +327,32 @@ impl Medium {
             c.absorption[j] = ext * (1.0 - self.aerosol_albedo) + o3 * o3_xs;
         }
         c
+    }
+
+    /// Air and ozone number densities (m⁻³) and the aerosol extinction at
+    /// 340 nm (× amount, m⁻¹) at distance `radius_m` from the planet's centre.
+    pub fn densities(&self, radius_m: f64) -> [f64; 3] {
+        let x = ((radius_m - self.planet_radius_m) / NODE_STEP_M).max(0.0);
+        let i = (x as usize).min(self.nodes.len() - 2);
+        let f = (x - i as f64).min(1.0);
+        let (a, b) = (&self.nodes[i], &self.nodes[i + 1]);
+        [
+            a.air_m3 + f * (b.air_m3 - a.air_m3),
+            a.ozone_m3 + f * (b.ozone_m3 - a.ozone_m3),
+            a.aerosol_340_per_m + f * (b.aerosol_340_per_m - a.aerosol_340_per_m),
+        ]
+    }
+
+    /// The pieces `(t0, t1)` of `span` that each stay within one shell, in
+    /// order along the ray.
+    pub fn pieces(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        span: Span,
+    ) -> impl Iterator<Item = (f64, f64)> + '_ {
+        let mut walk = self.walk(origin, dir, span, Bounds::Tight);
+        std::iter::from_fn(move || walk.next_piece(self).map(|p| (p.t0, p.t1)))
     }
 
     /// The part of the ray `origin + t·dir` (unit `dir`) inside the
@@ -343,26 +390,6 @@ impl Medium {
         })
     }
 
-    /// Whether any of a piece's ends or midpoint lies outside the Earth's
-    /// geometric shadow cylinder (slightly narrowed for the disc's penumbra).
-    /// Only a sampling-rate heuristic: it never decides a contribution.
-    fn piece_possibly_sunlit(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        sun_direction: DVec3,
-        piece: Piece,
-    ) -> bool {
-        let shadow_radius = self.planet_radius_m * 0.999;
-        [piece.t0, 0.5 * (piece.t0 + piece.t1), piece.t1]
-            .into_iter()
-            .any(|t| {
-                let x = origin + dir * t;
-                let along = x.dot(sun_direction);
-                along >= 0.0 || x.length_squared() - along * along > shadow_radius * shadow_radius
-            })
-    }
-
     fn shell_index(&self, radius_m: f64) -> usize {
         self.shell_radii_m
             .partition_point(|&r| r <= radius_m)
@@ -393,12 +420,6 @@ impl Medium {
 
     /// Distances to the sample points of a majorant (free-flight) process
     /// along `span`, one [`Collision`] at a time.
-    ///
-    /// `min_expected_events`: if the tight majorant's optical depth over the
-    /// span is below this, all majorants are scaled up to reach it. More
-    /// events means more next-event estimates on the ray (the in-scattering
-    /// integral is sampled in proportion to density) while the collision
-    /// weights stay unbiased.
     pub fn tracker<'a>(
         &'a self,
         origin: DVec3,
@@ -406,26 +427,11 @@ impl Medium {
         span: Span,
         lanes: &'a SpectralLanes,
         bounds: Bounds,
-        min_expected_events: f64,
     ) -> Tracker<'a> {
-        let walk = self.walk(origin, dir, span, bounds);
-        let mut scale = 1.0;
-        if min_expected_events > 0.0 {
-            let mut probe = walk.clone();
-            let mut tau = 0.0;
-            while let Some(piece) = probe.next_piece(self) {
-                tau += lanes.shell(&probe, piece.shell).majorant * (piece.t1 - piece.t0);
-            }
-            if tau > 0.0 && tau < min_expected_events {
-                scale = min_expected_events / tau;
-            }
-        }
         Tracker {
             medium: self,
             lanes,
-            walk,
-            scale,
-            sunlit: None,
+            walk: self.walk(origin, dir, span, bounds),
             t: span.t_enter,
             piece_end: span.t_enter,
             majorant: 0.0,
@@ -450,58 +456,123 @@ impl Medium {
         if span.hits_ground {
             return [0.0; LANES];
         }
+        self.transmittance_along(origin, dir, span, lanes, estimator, bounds, &mut [], rng)
+    }
+
+    /// Unbiased transmittance estimates from the start of `span` to each
+    /// distance in `checkpoints` (ascending; each replaced by its estimate in
+    /// lane 0..LANES of the matching entry of the returned prefix) and to the
+    /// end of the span (returned). One tracking pass serves all: the estimate
+    /// to a checkpoint is the product of the factors before it, unbiased on
+    /// its own.
+    #[allow(clippy::too_many_arguments)]
+    pub fn transmittance_along(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        span: Span,
+        lanes: &SpectralLanes,
+        estimator: TransmittanceEstimator,
+        bounds: Bounds,
+        checkpoints: &mut [(f64, Lanes)],
+        rng: &mut Rng,
+    ) -> Lanes {
         let mut walk = self.walk(origin, dir, span, bounds);
         let mut transmittance = [1.0; LANES];
         let mut control_depth = [0.0; LANES];
+        let mut next_checkpoint = 0;
         let mut budget = -rng.uniform_open0().ln();
+        // Record every checkpoint before `t` (in the current piece, whose
+        // control starts at `piece_t0` with depth `depth_t0`).
+        let mut flush = |t: f64,
+                         piece_t0: f64,
+                         control: &Lanes,
+                         depth_t0: &Lanes,
+                         transmittance: &Lanes,
+                         checkpoints: &mut [(f64, Lanes)]| {
+            while next_checkpoint < checkpoints.len() && checkpoints[next_checkpoint].0 <= t {
+                let dt = checkpoints[next_checkpoint].0 - piece_t0;
+                checkpoints[next_checkpoint].1 = std::array::from_fn(|j| {
+                    transmittance[j] * (-(depth_t0[j] + control[j] * dt.max(0.0))).exp()
+                });
+                next_checkpoint += 1;
+            }
+        };
         while let Some(piece) = walk.next_piece(self) {
             let bounds = lanes.shell(&walk, piece.shell);
             let (control, residual) = match estimator {
                 TransmittanceEstimator::ResidualRatioTracking => (bounds.min, bounds.residual),
                 _ => ([0.0; LANES], bounds.majorant),
             };
+            let depth_t0 = control_depth;
             let length = piece.t1 - piece.t0;
             for j in 0..LANES {
                 control_depth[j] += control[j] * length;
             }
-            if residual <= 0.0 {
-                continue;
-            }
-            // Exponential steps carry over piece boundaries as an optical-depth
-            // budget, so a piece without an event costs no random number.
-            let mut t = piece.t0;
-            loop {
-                let available = residual * (piece.t1 - t);
-                if budget >= available {
-                    budget -= available;
-                    break;
-                }
-                t += budget / residual;
-                budget = -rng.uniform_open0().ln();
-                let c = self.coefficients((origin + dir * t).length(), lanes);
-                match estimator {
-                    TransmittanceEstimator::DeltaTracking => {
-                        // One random number for all lanes: each lane's
-                        // estimate is still binary and unbiased.
-                        let u = rng.uniform() * residual;
-                        for (j, tr) in transmittance.iter_mut().enumerate() {
-                            if u < c.extinction(j) - control[j] {
-                                *tr = 0.0;
+            if residual > 0.0 {
+                // Exponential steps carry over piece boundaries as an
+                // optical-depth budget, so a piece without an event costs no
+                // random number.
+                let mut t = piece.t0;
+                loop {
+                    let available = residual * (piece.t1 - t);
+                    if budget >= available {
+                        budget -= available;
+                        break;
+                    }
+                    t += budget / residual;
+                    budget = -rng.uniform_open0().ln();
+                    flush(
+                        t,
+                        piece.t0,
+                        &control,
+                        &depth_t0,
+                        &transmittance,
+                        checkpoints,
+                    );
+                    let c = self.coefficients((origin + dir * t).length(), lanes);
+                    match estimator {
+                        TransmittanceEstimator::DeltaTracking => {
+                            // One random number for all lanes: each lane's
+                            // estimate is still binary and unbiased.
+                            let u = rng.uniform() * residual;
+                            for (j, tr) in transmittance.iter_mut().enumerate() {
+                                if u < c.extinction(j) - control[j] {
+                                    *tr = 0.0;
+                                }
                             }
                         }
-                        if transmittance[..lanes.active].iter().all(|&v| v == 0.0) {
-                            return [0.0; LANES];
-                        }
-                    }
-                    _ => {
-                        for (j, tr) in transmittance.iter_mut().enumerate() {
-                            *tr *= 1.0 - (c.extinction(j) - control[j]) / residual;
+                        _ => {
+                            for (j, tr) in transmittance.iter_mut().enumerate() {
+                                *tr *= 1.0 - (c.extinction(j) - control[j]) / residual;
+                            }
                         }
                     }
                 }
             }
+            flush(
+                piece.t1,
+                piece.t0,
+                &control,
+                &depth_t0,
+                &transmittance,
+                checkpoints,
+            );
+            if estimator == TransmittanceEstimator::DeltaTracking
+                && transmittance[..lanes.active].iter().all(|&v| v == 0.0)
+            {
+                for c in &mut checkpoints[next_checkpoint..] {
+                    c.1 = [0.0; LANES];
+                }
+                return [0.0; LANES];
+            }
         }
-        std::array::from_fn(|j| transmittance[j] * (-control_depth[j]).exp())
+        // Checkpoints at or past the end (rounding) get the end's estimate.
+        let end = std::array::from_fn(|j| transmittance[j] * (-control_depth[j]).exp());
+        for c in &mut checkpoints[next_checkpoint..] {
+            c.1 = end;
+        }
+        end
     }
 }
 
@@ -600,10 +671,6 @@ pub struct Tracker<'a> {
     medium: &'a Medium,
     lanes: &'a SpectralLanes,
     walk: ShellWalk,
-    scale: f64,
-    /// Ray origin, direction and sun direction when only possibly sunlit
-    /// pieces are scaled.
-    sunlit: Option<(DVec3, DVec3, DVec3)>,
     t: f64,
     piece_end: f64,
     majorant: f64,
@@ -612,37 +679,6 @@ pub struct Tracker<'a> {
 }
 
 impl Tracker<'_> {
-    /// Scale up the majorant only on pieces of the ray that may be sunlit,
-    /// so they get at least `min_expected_events` collisions in all. Any
-    /// majorant ≥ the extinction keeps the estimator unbiased; this only moves
-    /// next-event estimates out of the Earth's shadow (twilight, night side).
-    #[must_use]
-    pub fn inflate_sunlit(
-        mut self,
-        origin: DVec3,
-        dir: DVec3,
-        sun_direction: DVec3,
-        min_expected_events: f64,
-    ) -> Self {
-        let mut probe = self.walk.clone();
-        let mut tau = 0.0;
-        while let Some(piece) = probe.next_piece(self.medium) {
-            if self
-                .medium
-                .piece_possibly_sunlit(origin, dir, sun_direction, piece)
-            {
-                tau += self.lanes.shell(&probe, piece.shell).majorant * (piece.t1 - piece.t0);
-            }
-        }
-        self.scale = if tau > 0.0 && tau < min_expected_events {
-            min_expected_events / tau
-        } else {
-            1.0
-        };
-        self.sunlit = Some((origin, dir, sun_direction));
-        self
-    }
-
     /// The next tentative collision, or `None` at the end of the span.
     pub fn next(&mut self, rng: &mut Rng) -> Option<Collision> {
         if self.budget < 0.0 {
@@ -663,13 +699,9 @@ impl Tracker<'_> {
             }
             self.budget -= available;
             let piece = self.walk.next_piece(self.medium)?;
-            let majorant = self.lanes.shell(&self.walk, piece.shell).majorant;
+            self.majorant = self.lanes.shell(&self.walk, piece.shell).majorant;
             self.t = piece.t0;
             self.piece_end = piece.t1;
-            let lit = self
-                .sunlit
-                .is_none_or(|(o, d, sun)| self.medium.piece_possibly_sunlit(o, d, sun, piece));
-            self.majorant = if lit { majorant * self.scale } else { majorant };
         }
     }
 }
@@ -717,7 +749,7 @@ mod tests {
             let el = -10.0 + 100.0 * f64::from(i) / 200.0;
             let dir = DVec3::new(el.to_radians().cos(), 0.0, el.to_radians().sin());
             let span = medium.span(origin, dir).unwrap();
-            let mut tracker = medium.tracker(origin, dir, span, &lanes, Bounds::Tight, 0.0);
+            let mut tracker = medium.tracker(origin, dir, span, &lanes, Bounds::Tight);
             let mut last = span.t_enter;
             while let Some(c) = tracker.next(&mut rng) {
                 assert!(c.t >= last && c.t <= span.t_exit);

@@ -10,6 +10,7 @@ pub mod film;
 pub mod integrator;
 pub mod medium;
 pub mod service;
+pub mod sunlight;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
