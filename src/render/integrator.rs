@@ -261,7 +261,7 @@ impl<'a> Integrator<'a> {
         let distribution = if depth < max_order {
             InScatterDistribution::new(
                 self.medium,
-                self.medium.sun_columns(),
+                Some(self.medium.sun_columns()),
                 lanes,
                 origin,
                 dir,

@@ -20,7 +20,7 @@ use rayon::prelude::*;
 pub use camera::{direction_from_az_el, Camera};
 pub use film::Film;
 pub use integrator::{Integrator, IntegratorOptions};
-pub use medium::{Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
+pub use medium::{LaneTable, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 
 use crate::atmosphere::Atmosphere;
 use crate::rng::Rng;
@@ -38,6 +38,8 @@ pub struct Renderer {
     medium: Medium,
     camera: Camera,
     cmf: &'static ColourMatching,
+    /// Per-wavelength constants over the colour-matching range.
+    lane_table: LaneTable,
     sun_direction: DVec3,
     observer_m: DVec3,
 }
@@ -67,6 +69,7 @@ impl Renderer {
         let atmosphere = Atmosphere::new(scene.atmosphere.clone());
         let medium = Medium::new(&atmosphere);
         let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
+        let cmf = ColourMatching::get(scene.render.observer);
         Ok(Self {
             observer_m: DVec3::new(
                 0.0,
@@ -74,7 +77,8 @@ impl Renderer {
                 scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
             ),
             sun_direction: direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg),
-            cmf: ColourMatching::get(scene.render.observer),
+            cmf,
+            lane_table: LaneTable::new(&medium, cmf.range_nm(), scene.render.unit_sun),
             scene: scene.clone(),
             atmosphere,
             medium,
@@ -121,10 +125,7 @@ impl Renderer {
             wavelengths[k] = w;
             pdfs[k] = p;
         }
-        (
-            SpectralLanes::new(wavelengths, n, &self.medium, self.scene.render.unit_sun),
-            pdfs,
-        )
+        (self.lane_table.lanes(wavelengths, n, &self.medium), pdfs)
     }
 
     /// One XYZ sample (Y in cd m⁻²) through pixel (x, y), or `None` if the
