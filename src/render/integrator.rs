@@ -211,21 +211,11 @@ impl<'a> Integrator<'a> {
             let Some((_, _, beta)) = &mut vertex else {
                 break;
             };
-            if self.options.russian_roulette && depth >= 2 {
-                let mut survive = beta[..lanes.active]
-                    .iter()
-                    .copied()
-                    .fold(0.0, f64::max)
-                    .min(1.0);
-                if depth >= ROULETTE_CAP_DEPTH {
-                    survive = survive.min(0.9);
-                }
-                if rng.uniform() >= survive {
-                    break;
-                }
-                for b in beta.iter_mut() {
-                    *b /= survive;
-                }
+            if self.options.russian_roulette
+                && depth >= 2
+                && !survives_roulette(beta, lanes.active, depth, rng)
+            {
+                break;
             }
         }
     }
@@ -554,15 +544,8 @@ impl<'a> Integrator<'a> {
             }
             // Russian roulette on the largest lane weight.
             if opts.russian_roulette && depth >= 2 {
-                let mut survive = beta[..active].iter().copied().fold(0.0, f64::max).min(1.0);
-                if depth >= ROULETTE_CAP_DEPTH {
-                    survive = survive.min(0.9);
-                }
-                if rng.uniform() >= survive {
+                if !survives_roulette(&mut beta, active, depth, rng) {
                     break;
-                }
-                for b in &mut beta {
-                    *b /= survive;
                 }
             } else if beta[..active].iter().all(|&b| b == 0.0) {
                 break;
@@ -591,6 +574,24 @@ impl<'a> Integrator<'a> {
         let (t, b) = orthonormal_basis(dir);
         (t * (sin * phi.cos()) + b * (sin * phi.sin()) + dir * mu).normalize()
     }
+}
+
+/// Russian roulette after `depth` scatterings: survive with the largest
+/// active lane weight (at most 1, and at most 0.9 past
+/// [`ROULETTE_CAP_DEPTH`], so paths end with probability one), dividing
+/// `beta` by that probability on survival.
+fn survives_roulette(beta: &mut Lanes, active: usize, depth: u32, rng: &mut Rng) -> bool {
+    let mut survive = beta[..active].iter().copied().fold(0.0, f64::max).min(1.0);
+    if depth >= ROULETTE_CAP_DEPTH {
+        survive = survive.min(0.9);
+    }
+    if rng.uniform() >= survive {
+        return false;
+    }
+    for b in beta.iter_mut() {
+        *b /= survive;
+    }
+    true
 }
 
 /// Two unit vectors completing `n` to a right-handed orthonormal basis
