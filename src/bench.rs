@@ -58,6 +58,10 @@ pub struct BenchArgs {
     /// Also switch each variance-reduction technique off in turn.
     #[arg(long)]
     pub ablation: bool,
+    /// Only these ablation variants (names as printed, e.g.
+    /// `camera_samples=0`; implies --ablation).
+    #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
+    pub variants: Option<Vec<String>>,
     /// Also measure parallel efficiency from 1 to all threads.
     #[arg(long)]
     pub scaling: bool,
@@ -516,6 +520,15 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("next_event_estimation=false", |s| {
             s.render.integrator.next_event_estimation = false;
         }),
+        ("camera_samples=0", |s| {
+            s.render.integrator.camera_samples = 0;
+        }),
+        ("camera_samples=1", |s| {
+            s.render.integrator.camera_samples = 1;
+        }),
+        ("camera_samples=4", |s| {
+            s.render.integrator.camera_samples = 4;
+        }),
         ("sunlight_samples=1", |s| {
             s.render.integrator.sunlight_samples = 1;
         }),
@@ -529,6 +542,27 @@ pub fn ablation_variants() -> Vec<Variant> {
             s.render.integrator.russian_roulette = false;
         }),
     ]
+}
+
+/// The ablation variants named in `names` (all of them for `None`), or an
+/// error naming the unknown one and the valid names.
+fn selected_variants(names: Option<&[String]>) -> Result<Vec<Variant>, String> {
+    let all = ablation_variants();
+    let Some(names) = names else {
+        return Ok(all);
+    };
+    names
+        .iter()
+        .map(|n| {
+            all.iter().find(|(v, _)| v == n).copied().ok_or_else(|| {
+                let valid: Vec<&str> = all.iter().map(|(v, _)| *v).collect();
+                format!(
+                    "--variants: unknown variant '{n}' (valid: {})",
+                    valid.join(", ")
+                )
+            })
+        })
+        .collect()
 }
 
 fn read_trimmed(path: &str) -> String {
@@ -776,8 +810,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             target_met: time_to_target.map(|t| t <= TARGET_BUDGET_S),
             run: run.clone(),
         });
-        if args.ablation && name != PREVIEW {
-            for (variant, apply) in ablation_variants() {
+        if (args.ablation || args.variants.is_some()) && name != PREVIEW {
+            for (variant, apply) in selected_variants(args.variants.as_deref())? {
                 eprintln!("bench: {name}: ablation {variant}");
                 let mut s = scene.clone();
                 apply(&mut s);
@@ -1205,6 +1239,22 @@ mod tests {
         );
         assert_eq!(w.bench.threads, Some(1));
         assert!(w.bench.json && w.bench.ablation && !w.bench.scaling && !w.bench.memory);
+    }
+
+    #[test]
+    fn variants_are_selected_by_name() {
+        let names = ["camera_samples=0".to_owned(), "sun_lobe=0.5".to_owned()];
+        let picked = selected_variants(Some(&names)).unwrap();
+        assert_eq!(
+            picked.iter().map(|(v, _)| *v).collect::<Vec<_>>(),
+            ["camera_samples=0", "sun_lobe=0.5"]
+        );
+        let err = selected_variants(Some(&["nope".to_owned()])).err().unwrap();
+        assert!(err.contains("--variants") && err.contains("russian_roulette=false"));
+        assert_eq!(
+            selected_variants(None).unwrap().len(),
+            ablation_variants().len()
+        );
     }
 
     #[test]

@@ -307,6 +307,15 @@ impl Scene {
                 ),
             ));
         }
+        if i.camera_samples as usize > most {
+            return Err(SceneError::new(
+                "camera samples",
+                format!(
+                    "{} is outside the valid range 0 to {most}",
+                    i.camera_samples
+                ),
+            ));
+        }
         check_range("sun lobe", i.sun_lobe, 0.0, 1.0)?;
         Ok(())
     }

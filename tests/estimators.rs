@@ -3,6 +3,7 @@
 use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::sun;
+use skyrender::render::sunlight::CameraDensities;
 use skyrender::render::{
     direction_from_az_el, Integrator, IntegratorOptions, Medium, SpectralLanes,
     TransmittanceEstimator, LANES,
@@ -376,6 +377,87 @@ fn sunlight_sampling_is_unbiased_in_twilight() {
                 b[j]
             );
             assert!(b[j] > 0.0);
+        }
+    }
+}
+
+#[test]
+fn camera_ray_densities_are_unbiased() {
+    // The per-render table of camera-ray densities (`camera_samples`) only
+    // shapes where in-scattering points go: single scattering must still
+    // match the quadrature, and all orders must match plain delta tracking,
+    // for an observer on the ground (sky, twilight, looking down at the
+    // ground) and one in orbit (the Earth's disc and the limb). A black
+    // ground keeps the quadrature (air only) comparable on ground-hitting
+    // views.
+    let atmosphere = Atmosphere::new(AtmosphereParams {
+        ground_albedo: 0.0,
+        ..AtmosphereParams::default()
+    });
+    let medium = Medium::new(&atmosphere);
+    let lanes = unit_sun_lanes(&medium, [440.0, 520.0, 600.0, 680.0]);
+    let radius = atmosphere.params.planet_radius_m;
+    let cases = [
+        // (observer altitude m, sun az/el, view az/el)
+        (500.0, (180.0, 30.0), (90.0, 20.0)),
+        (500.0, (180.0, 30.0), (200.0, -10.0)),
+        (2.0, (270.0, -4.0), (270.0, 3.0)),
+        (2.0, (270.0, -4.0), (90.0, 8.0)),
+        (400e3, (60.0, 10.0), (0.0, -60.0)),
+        (400e3, (60.0, 10.0), (90.0, -18.8)),
+    ];
+    for (altitude_m, (sun_az, sun_el), (az, el)) in cases {
+        let origin = DVec3::new(0.0, 0.0, radius + altitude_m);
+        let sun_dir = direction_from_az_el(sun_az, sun_el);
+        let view = direction_from_az_el(az, el);
+        let camera = CameraDensities::new(&medium, origin, sun_dir);
+        let run = |camera_samples: u32, order: Option<u32>, paths: u32| {
+            let options = IntegratorOptions {
+                camera_samples,
+                max_scattering_order: order,
+                ..IntegratorOptions::default()
+            };
+            let integrator =
+                Integrator::new(&medium, &options, sun_dir).with_camera_densities(&camera);
+            estimate(paths, |rng| integrator.radiance(origin, view, &lanes, rng))
+        };
+        // Single scattering against the quadrature where the sun is high
+        // (the quadrature treats the sun as a point, which matters only in
+        // the penumbra at twilight), else against delta tracking.
+        let (single, single_se) = run(2, Some(1), 20_000);
+        let (single_reference, single_reference_se) = if sun_el > 5.0 {
+            let quadrature = std::array::from_fn(|j| {
+                single_scattering_quadrature(
+                    &atmosphere,
+                    origin,
+                    view,
+                    sun_dir,
+                    lanes.wavelengths_nm[j],
+                )
+            });
+            (quadrature, [0.0; LANES])
+        } else {
+            run(0, Some(1), 40_000)
+        };
+        for j in 0..LANES {
+            let expected = single_reference[j];
+            let combined = single_se[j].hypot(single_reference_se[j]);
+            assert!(
+                (single[j] - expected).abs() < 4.0 * combined + 3e-3 * expected,
+                "{altitude_m} m, view ({az}, {el}), lane {j}: single scattering {} vs {expected} ± {combined}",
+                single[j],
+            );
+        }
+        let (reference, reference_se) = run(0, None, 40_000);
+        let (all, all_se) = run(2, None, 20_000);
+        for j in 0..LANES {
+            let combined = reference_se[j].hypot(all_se[j]);
+            assert!(
+                (all[j] - reference[j]).abs() < 4.0 * combined,
+                "{altitude_m} m, view ({az}, {el}), lane {j}: {} vs {} ± {combined}",
+                all[j],
+                reference[j]
+            );
         }
     }
 }

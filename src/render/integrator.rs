@@ -16,12 +16,14 @@
 //! Absorption never terminates a path; it only weights it. Russian roulette
 //! ends paths without bias.
 //!
-//! **Alternatives kept as options** (measured slower at equal time on the
-//! benchmark scenes; see `BENCHMARKS.md`): `sunlight_samples` replaces the
-//! collisions by points drawn from the expected sunlight along each segment
-//! ([`super::sunlight`]; some 100× less variance for single scattering at
-//! twilight, but ~15× the cost per path), and `sun_lobe` mixes a lobe about
-//! the sun into the scattering directions.
+//! **Alternatives kept as options** (not faster at equal time on the
+//! benchmark scenes; see `BENCHMARKS.md`): `camera_samples` replaces the
+//! camera ray's collisions by points drawn from the expected sunlight along
+//! it, from a per-render table by view direction ([`CameraDensities`]);
+//! `sunlight_samples` does so on every segment, building the density per
+//! segment ([`super::sunlight`]; some 100× less variance for single
+//! scattering at twilight, but ~15× the cost per path); and `sun_lobe` mixes
+//! the phase function about the sun into the scattering directions.
 //!
 //! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
 //! Every random decision (real vs. null, phase-function component and angle)
@@ -34,8 +36,9 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
+use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
-use super::sunlight::InScatterDistribution;
+use super::sunlight::{CameraDensities, CameraRayDensity, Component, InScatterDistribution};
 use crate::physics::{rayleigh, sun};
 use crate::rng::Rng;
 
@@ -52,13 +55,19 @@ pub struct IntegratorOptions {
     pub shadow_transmittance: TransmittanceEstimator,
     /// Next-event estimation toward the sun.
     pub next_event_estimation: bool,
+    /// In-scattering points on each camera ray, drawn from the expected
+    /// sunlight along it (cached per view direction, [`CameraDensities`];
+    /// stratified; the path goes on from a further point drawn from the
+    /// skylight part), 0–8. 0 (the default) = delta tracking on camera rays
+    /// too.
+    pub camera_samples: u32,
     /// Next-event points per path segment drawn from the expected-sunlight
-    /// density of [`super::sunlight`] (stratified; one of them also carries
-    /// the path on), 0–8. 0 (the default) = delta tracking with a next-event
-    /// estimate at every tentative collision.
+    /// density of [`super::sunlight`] (stratified; the path goes on from a
+    /// further point drawn from its skylight part), 0–8. 0 (the default) =
+    /// delta tracking with a next-event estimate at every tentative collision.
     pub sunlight_samples: u32,
-    /// Share of scattering directions drawn from a lobe about the sun
-    /// (0–1; the rest follow the phase function; default 0).
+    /// Share of scattering directions drawn from the phase function about
+    /// the sun's direction instead of the path's (0–1; default 0).
     pub sun_lobe: f64,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
@@ -74,6 +83,7 @@ impl Default for IntegratorOptions {
             tight_majorants: true,
             shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
             next_event_estimation: true,
+            camera_samples: 0,
             sunlight_samples: 0,
             sun_lobe: 0.0,
             russian_roulette: true,
@@ -88,9 +98,6 @@ pub type Radiance = Lanes;
 /// Scattering vertices become paths longer than this only through Russian
 /// roulette with survival ≤ 0.9, so paths end with probability one.
 const ROULETTE_CAP_DEPTH: u32 = 64;
-/// Concentration of the sun lobe (κ = 8: half its samples within ≈ 24° of
-/// the sun).
-const SUN_LOBE_KAPPA: f64 = 8.0;
 /// Most in-scattering points on one segment.
 pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
 /// Ground vertices sit this far above the surface, m.
@@ -105,6 +112,35 @@ pub struct Integrator<'a> {
     sun_solid_angle_sr: f64,
     sun_frame: (DVec3, DVec3),
     bounds: Bounds,
+    camera: Option<&'a CameraDensities>,
+}
+
+/// A density of in-scattering distances along one path segment.
+trait SegmentDensity {
+    /// A distance from `component` for the uniform variate `u` ∈ [0, 1) and
+    /// its density, m⁻¹.
+    fn sample(&self, component: Component, u: f64) -> (f64, f64);
+    /// Expected shares of the light found by going on from the medium and
+    /// from the ground (only their ratio matters).
+    fn shares(&self, ground_albedo: f64) -> (f64, f64);
+}
+
+impl SegmentDensity for InScatterDistribution {
+    fn sample(&self, component: Component, u: f64) -> (f64, f64) {
+        InScatterDistribution::sample(self, component, u)
+    }
+    fn shares(&self, ground_albedo: f64) -> (f64, f64) {
+        InScatterDistribution::shares(self, ground_albedo)
+    }
+}
+
+impl SegmentDensity for CameraRayDensity<'_> {
+    fn sample(&self, component: Component, u: f64) -> (f64, f64) {
+        CameraRayDensity::sample(self, component, u)
+    }
+    fn shares(&self, ground_albedo: f64) -> (f64, f64) {
+        CameraRayDensity::shares(self, ground_albedo)
+    }
 }
 
 impl<'a> Integrator<'a> {
@@ -121,7 +157,16 @@ impl<'a> Integrator<'a> {
             } else {
                 Bounds::Global
             },
+            camera: None,
         }
+    }
+
+    /// Uses `camera` for rays that start at its observer (see
+    /// [`IntegratorOptions::camera_samples`]).
+    #[must_use]
+    pub fn with_camera_densities(mut self, camera: &'a CameraDensities) -> Self {
+        self.camera = Some(camera);
+        self
     }
 
     /// Uniform direction within the solar disc's cone.
@@ -171,12 +216,56 @@ impl<'a> Integrator<'a> {
         rng: &mut Rng,
     ) -> Radiance {
         let mut radiance: Lanes = [0.0; LANES];
-        if self.options.sunlight_samples > 0 && self.options.next_event_estimation {
-            self.trace_sunlit(origin, dir, lanes, &mut radiance, rng);
-        } else {
-            self.trace(origin, dir, 0, [1.0; LANES], lanes, &mut radiance, rng);
+        let opts = self.options;
+        let camera = self
+            .camera
+            .filter(|c| opts.camera_samples > 0 && c.origin_m() == origin);
+        match camera {
+            Some(camera) if opts.next_event_estimation => {
+                let next = self.camera_segment(camera, dir, lanes, &mut radiance, rng);
+                if let Some((x, new_dir, beta)) = next {
+                    if opts.sunlight_samples > 0 {
+                        self.trace_sunlit(x, new_dir, 1, beta, lanes, &mut radiance, rng);
+                    } else {
+                        self.trace(x, new_dir, 1, beta, lanes, &mut radiance, rng);
+                    }
+                }
+            }
+            _ if opts.sunlight_samples > 0 && opts.next_event_estimation => {
+                self.trace_sunlit(origin, dir, 0, [1.0; LANES], lanes, &mut radiance, rng);
+            }
+            _ => self.trace(origin, dir, 0, [1.0; LANES], lanes, &mut radiance, rng),
         }
         radiance
+    }
+
+    /// The camera ray's segment, estimated through in-scattering points from
+    /// the cached expected-sunlight density ([`CameraDensities`]) like one
+    /// segment of [`Self::trace_sunlit`]; returns the vertex the path goes
+    /// on from, if any.
+    fn camera_segment(
+        &self,
+        camera: &CameraDensities,
+        dir: DVec3,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) -> Option<(DVec3, DVec3, Lanes)> {
+        let origin = camera.origin_m();
+        let beta = [1.0; LANES];
+        let Some(span) = self.medium.span(origin, dir) else {
+            self.add_sun_disc(dir, &beta, lanes, radiance);
+            return None;
+        };
+        let density = camera.density(self.medium, dir, span);
+        let n = (self.options.camera_samples as usize).min(MAX_SUNLIGHT_SAMPLES);
+        let segment = Segment {
+            origin,
+            dir,
+            span,
+            depth: 0,
+        };
+        self.estimate_segment(&segment, &beta, Some(&density), n, lanes, radiance, rng)
     }
 
     /// A path whose every segment is estimated through in-scattering points
@@ -195,16 +284,19 @@ impl<'a> Integrator<'a> {
     /// path continues either from the medium point or from the ground, chosen
     /// by their expected shares (weights divided by the choice's probability).
     /// Every transmittance on the segment comes from one tracking pass.
+    #[allow(clippy::too_many_arguments)]
     fn trace_sunlit(
         &self,
         origin: DVec3,
         dir: DVec3,
+        depth: u32,
+        beta: Lanes,
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
     ) {
-        let mut vertex = Some((origin, dir, [1.0; LANES]));
-        let mut depth = 0;
+        let mut vertex = Some((origin, dir, beta));
+        let mut depth = depth;
         while let Some((origin, dir, beta)) = vertex {
             vertex = self.sunlit_segment(origin, dir, depth, &beta, lanes, radiance, rng);
             depth += 1;
@@ -268,31 +360,48 @@ impl<'a> Integrator<'a> {
         } else {
             0
         };
-        // Stratified in the distribution's cumulative probability, so the
-        // points come out in ascending order for the transmittance pass.
-        let mut points = [(0.0, [0.0; LANES]); MAX_SUNLIGHT_SAMPLES];
-        let mut densities = [0.0; MAX_SUNLIGHT_SAMPLES];
-        if let Some(d) = &distribution {
-            for k in 0..n {
-                let (t, pdf) = d.sample((k as f64 + rng.uniform()) / n as f64);
-                points[k].0 = t;
-                densities[k] = pdf;
-            }
-        }
-        let tr_end = self.medium.transmittance_along(
+        let segment = Segment {
             origin,
             dir,
             span,
-            lanes,
-            opts.shadow_transmittance,
-            self.bounds,
-            &mut points[..n],
-            rng,
-        );
+            depth,
+        };
+        let distribution = distribution.as_ref().map(|d| d as &dyn SegmentDensity);
+        self.estimate_segment(&segment, beta, distribution, n, lanes, radiance, rng)
+    }
+
+    /// The light along `segment` (reached with weight `beta`) through `n`
+    /// in-scattering points drawn from `distribution`, each with a next-event
+    /// estimate, plus what lies at the segment's end; returns the vertex the
+    /// path goes on from (see [`Self::trace_sunlit`]).
+    #[allow(clippy::too_many_arguments)]
+    fn estimate_segment(
+        &self,
+        segment: &Segment,
+        beta: &Lanes,
+        distribution: Option<&dyn SegmentDensity>,
+        n: usize,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) -> Option<(DVec3, DVec3, Lanes)> {
+        let opts = self.options;
+        let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
+        let &Segment {
+            origin,
+            dir,
+            span,
+            depth,
+        } = segment;
+        let n = if distribution.is_some() && depth < max_order {
+            n
+        } else {
+            0
+        };
         // Where the path goes on: from the medium, from the ground, or not.
         let goes_on = depth + 1 < max_order;
         let ground_goes_on = goes_on && span.hits_ground && self.medium.ground_albedo > 0.0;
-        let p_medium = match (&distribution, goes_on && n > 0) {
+        let p_medium = match (distribution, goes_on) {
             (Some(d), true) if ground_goes_on => {
                 let (medium, ground) = d.shares(self.medium.ground_albedo);
                 (medium / (medium + ground)).clamp(0.05, 0.95)
@@ -303,23 +412,67 @@ impl<'a> Integrator<'a> {
             (Some(_), true) => 1.0,
             _ => 0.0,
         };
-        let continue_from = if rng.uniform() < p_medium {
-            Some(((rng.uniform() * n as f64) as usize).min(n - 1))
-        } else {
-            None
-        };
+        let from_medium = rng.uniform() < p_medium;
+        // n next-event points stratified in the whole density's cumulative
+        // probability, and the point the path goes on from, drawn from the
+        // skylight part alone; sorted for the transmittance pass. A point
+        // outside the span (only through rounding) keeps density 0 and is
+        // skipped.
+        let mut samples = [(0.0, 0.0, false); MAX_SUNLIGHT_SAMPLES + 1];
+        let mut m = 0;
+        if let Some(d) = distribution {
+            for k in 0..n {
+                let (t, pdf) = d.sample(Component::Mixture, (k as f64 + rng.uniform()) / n as f64);
+                samples[m] = (t, pdf, false);
+                m += 1;
+            }
+            if from_medium {
+                let (t, pdf) = d.sample(Component::Skylight, rng.uniform());
+                samples[m] = (t, pdf, true);
+                m += 1;
+            }
+        }
+        for sample in &mut samples[..m] {
+            if !(span.t_enter..=span.t_exit).contains(&sample.0) {
+                *sample = (span.t_exit, 0.0, sample.2);
+            }
+        }
+        samples[..m].sort_by(|a, b| a.0.total_cmp(&b.0));
+        let mut points = [(0.0, [0.0; LANES]); MAX_SUNLIGHT_SAMPLES + 1];
+        for (point, sample) in points.iter_mut().zip(&samples[..m]) {
+            point.0 = sample.0;
+        }
+        let tr_end = self.medium.transmittance_along(
+            origin,
+            dir,
+            span,
+            lanes,
+            opts.shadow_transmittance,
+            self.bounds,
+            &mut points[..m],
+            rng,
+        );
         let mut next = None;
-        for k in 0..n {
-            let (t, tr_view) = points[k];
-            if densities[k] <= 0.0 {
+        for (&(t, tr_view), &(_, density, continues)) in points.iter().zip(&samples[..m]) {
+            if density <= 0.0 {
                 continue;
             }
             let x = origin + dir * t;
             let c = self.medium.coefficients(x.length(), lanes);
+            if continues {
+                let (new_dir, pdf) = self.sample_scatter_direction(dir, &c, lanes, rng);
+                let mu = dir.dot(new_dir);
+                let new_beta = std::array::from_fn(|j| {
+                    beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
+                        / (density * pdf * p_medium)
+                });
+                next = Some((x, new_dir, new_beta));
+                continue;
+            }
             let to_sun = self.sample_sun_direction(rng);
             let mu = dir.dot(to_sun);
             let tr_sun = self.shadow(x, to_sun, lanes, rng);
-            let weight = 1.0 / (n as f64 * densities[k]);
+            let weight = 1.0 / (n as f64 * density);
             for j in 0..LANES {
                 radiance[j] += beta[j]
                     * tr_view[j]
@@ -328,21 +481,12 @@ impl<'a> Integrator<'a> {
                     * lanes.sun_irradiance[j]
                     * tr_sun[j];
             }
-            if continue_from == Some(k) {
-                let (new_dir, pdf) = self.sample_scatter_direction(dir, &c, lanes, rng);
-                let mu = dir.dot(new_dir);
-                let new_beta = std::array::from_fn(|j| {
-                    beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
-                        / (densities[k] * pdf * p_medium)
-                });
-                next = Some((x, new_dir, new_beta));
-            }
         }
         let through: Lanes = std::array::from_fn(|j| beta[j] * tr_end[j]);
         if span.hits_ground {
             let normal = (origin + dir * span.t_exit).normalize();
             let bounce = self.ground_vertex(normal, depth, &through, lanes, radiance, rng);
-            if continue_from.is_none() && ground_goes_on {
+            if !from_medium && ground_goes_on {
                 next = bounce.map(|(x, d, b)| (x, d, b.map(|v| v / (1.0 - p_medium))));
             }
         } else if depth == 0 {
@@ -399,10 +543,13 @@ impl<'a> Integrator<'a> {
     }
 
     /// A scattering direction and its density (per sr): with probability
-    /// `sun_lobe`, from a von Mises–Fisher lobe about the sun (where the
-    /// brightest skylight is: the aureole by day, the glow over the sunward
-    /// horizon at twilight), else from the lane-averaged phase function; the
-    /// density is the mixture's (one-sample MIS, balance heuristic).
+    /// `sun_lobe`, from the phase function about the *sun's* direction, else
+    /// about `dir`; the density is the mixture's (one-sample MIS, balance
+    /// heuristic). Skylight arriving along ω is mostly sunlight scattered
+    /// once somewhere along ω, always through the angle between ω and the
+    /// sun, so its angular shape is that phase function P(ω·ω_sun) — the
+    /// aureole by day, the glow over the hidden sun at twilight. The phase
+    /// function of the point itself stands in for the unknown ones along ω.
     fn sample_scatter_direction(
         &self,
         dir: DVec3,
@@ -412,21 +559,13 @@ impl<'a> Integrator<'a> {
     ) -> (DVec3, f64) {
         let alpha = self.options.sun_lobe;
         let new_dir = if rng.uniform() < alpha {
-            // Inverse-CDF sampling of the lobe's cosine (Wenzel 2009).
-            let u = rng.uniform();
-            let cos = (1.0 + (u + (1.0 - u) * (-2.0 * SUN_LOBE_KAPPA).exp()).ln() / SUN_LOBE_KAPPA)
-                .clamp(-1.0, 1.0);
-            let sin = (1.0 - cos * cos).max(0.0).sqrt();
-            let phi = 2.0 * PI * rng.uniform();
-            let (t, b) = self.sun_frame;
-            (t * (sin * phi.cos()) + b * (sin * phi.sin()) + self.sun_direction * cos).normalize()
+            self.sample_phase_direction(self.sun_direction, c, lanes, rng)
         } else {
             self.sample_phase_direction(dir, c, lanes, rng)
         };
         let phase = self.phase_mixture_pdf(c, lanes, dir.dot(new_dir));
         let pdf = if alpha > 0.0 {
-            let lobe = SUN_LOBE_KAPPA / (2.0 * PI * (1.0 - (-2.0 * SUN_LOBE_KAPPA).exp()))
-                * (SUN_LOBE_KAPPA * (new_dir.dot(self.sun_direction) - 1.0)).exp();
+            let lobe = self.phase_mixture_pdf(c, lanes, self.sun_direction.dot(new_dir));
             (1.0 - alpha) * phase + alpha * lobe
         } else {
             phase
@@ -574,6 +713,15 @@ impl<'a> Integrator<'a> {
         let (t, b) = orthonormal_basis(dir);
         (t * (sin * phi.cos()) + b * (sin * phi.sin()) + dir * mu).normalize()
     }
+}
+
+/// A path segment: from `origin` along `dir` over `span`, after `depth`
+/// scatterings.
+struct Segment {
+    origin: DVec3,
+    dir: DVec3,
+    span: Span,
+    depth: u32,
 }
 
 /// Russian roulette after `depth` scatterings: survive with the largest

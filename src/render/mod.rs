@@ -26,6 +26,7 @@ use crate::atmosphere::Atmosphere;
 use crate::rng::Rng;
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
+use sunlight::CameraDensities;
 
 /// (√5 − 1)/2: the additive recurrence with this step is the most evenly
 /// spread 1-D sequence (Weyl; the three-distance theorem).
@@ -42,6 +43,9 @@ pub struct Renderer {
     lane_table: LaneTable,
     sun_direction: DVec3,
     observer_m: DVec3,
+    /// Expected-sunlight densities of camera rays, built per view direction
+    /// on first use.
+    camera_densities: CameraDensities,
 }
 
 /// Result of one pass.
@@ -70,13 +74,16 @@ impl Renderer {
         let medium = Medium::new(&atmosphere);
         let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
         let cmf = ColourMatching::get(scene.render.observer);
+        let observer_m = DVec3::new(
+            0.0,
+            0.0,
+            scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
+        );
+        let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
         Ok(Self {
-            observer_m: DVec3::new(
-                0.0,
-                0.0,
-                scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
-            ),
-            sun_direction: direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg),
+            camera_densities: CameraDensities::new(&medium, observer_m, sun_direction),
+            observer_m,
+            sun_direction,
             cmf,
             lane_table: LaneTable::new(&medium, cmf.range_nm(), scene.render.unit_sun),
             scene: scene.clone(),
@@ -104,6 +111,7 @@ impl Renderer {
             &self.scene.render.integrator,
             self.sun_direction,
         )
+        .with_camera_densities(&self.camera_densities)
     }
 
     /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)

@@ -21,6 +21,8 @@
 //! estimator stays unbiased whatever the table's error (Earth's penumbra,
 //! refraction-free geometry, interpolation).
 
+use std::sync::OnceLock;
+
 use glam::DVec3;
 
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
@@ -134,10 +136,10 @@ fn column_along(medium: &Medium, origin: DVec3, dir: DVec3) -> [f32; 3] {
 const MAX_SEGMENTS: usize = 96;
 /// Segments are cut finer than this optical depth (largest lane), so the
 /// view transmittance varies little within one.
-const SEGMENT_OPTICAL_DEPTH: f64 = 0.2;
+const SEGMENT_OPTICAL_DEPTH: f64 = 1.0;
 /// Segments are cut shorter than this, m, so the sun's transmittance (which
 /// changes across the Earth's shadow) is resolved along long grazing pieces.
-const SEGMENT_LENGTH_M: f64 = 40_000.0;
+const SEGMENT_LENGTH_M: f64 = 150_000.0;
 /// Share of the skylight component (∝ σ_s T, positive wherever air scatters):
 /// it guarantees unbiasedness and serves the multiple-scattering continuation.
 const SKYLIGHT_SHARE: f64 = 0.3;
@@ -146,8 +148,11 @@ const SKYLIGHT_SHARE: f64 = 0.3;
 pub struct InScatterDistribution {
     /// Segment boundaries, m along the ray.
     t: [f64; MAX_SEGMENTS + 1],
-    /// Cumulative probability at each boundary (cdf[0] = 0, cdf[n] = 1).
+    /// Cumulative probability at each boundary (cdf[0] = 0, cdf[n] = 1) of
+    /// the whole mixture ([`Component::Mixture`]) and of the skylight
+    /// component alone ([`Component::Skylight`]).
     cdf: [f64; MAX_SEGMENTS + 1],
+    sky_cdf: [f64; MAX_SEGMENTS + 1],
     segments: usize,
     /// Approximate lane-averaged ∫ σ_s T dt and T(t_end).
     scattered: f64,
@@ -251,29 +256,35 @@ impl InScatterDistribution {
             0.0
         };
         let mut cdf = [0.0; MAX_SEGMENTS + 1];
+        let mut sky_cdf = [0.0; MAX_SEGMENTS + 1];
         for s in 0..n {
-            let mut mass = 0.0;
+            let mut sun_mass = 0.0;
+            let mut sky_mass = 0.0;
             for j in 0..active {
                 if sun_total[j] > 0.0 {
-                    mass += sun_share / sun_lanes as f64 * sunlit[s][j] / sun_total[j];
+                    sun_mass += sunlit[s][j] / sun_total[j] / sun_lanes as f64;
                 }
                 if sky_total[j] > 0.0 {
-                    mass += (1.0 - sun_share) / sky_lanes as f64 * skylit[s][j] / sky_total[j];
+                    sky_mass += skylit[s][j] / sky_total[j] / sky_lanes as f64;
                 }
             }
-            cdf[s + 1] = cdf[s] + mass;
+            cdf[s + 1] = cdf[s] + sun_share * sun_mass + (1.0 - sun_share) * sky_mass;
+            sky_cdf[s + 1] = sky_cdf[s] + sky_mass;
         }
-        let total = cdf[n];
-        if total <= 0.0 || !total.is_finite() {
-            return None;
+        for c in [&mut cdf, &mut sky_cdf] {
+            let total = c[n];
+            if total <= 0.0 || !total.is_finite() {
+                return None;
+            }
+            for v in &mut c[1..=n] {
+                *v /= total;
+            }
+            c[n] = 1.0;
         }
-        for v in &mut cdf[1..=n] {
-            *v /= total;
-        }
-        cdf[n] = 1.0;
         Some(Self {
             t,
             cdf,
+            sky_cdf,
             segments: n,
             scattered: sky_total[..active].iter().sum::<f64>() / active as f64,
             transmitted: view_depth[..active].iter().map(|d| (-d).exp()).sum::<f64>()
@@ -288,19 +299,272 @@ impl InScatterDistribution {
         (self.scattered, self.transmitted * ground_albedo)
     }
 
-    /// The distance for the uniform variate `u` ∈ [0, 1) and its density, m⁻¹.
-    pub fn sample(&self, u: f64) -> (f64, f64) {
+    /// Where the density starts along its ray, m.
+    pub fn t_enter(&self) -> f64 {
+        self.t[0]
+    }
+
+    /// Length of the density's support, m.
+    pub fn length(&self) -> f64 {
+        self.t[self.segments] - self.t[0]
+    }
+
+    fn cdf(&self, component: Component) -> &[f64; MAX_SEGMENTS + 1] {
+        match component {
+            Component::Mixture => &self.cdf,
+            Component::Skylight => &self.sky_cdf,
+        }
+    }
+
+    /// The density of `component` at distance `t_m` along the ray, m⁻¹
+    /// (zero outside the segments).
+    pub fn density_at(&self, component: Component, t_m: f64) -> f64 {
         let n = self.segments;
+        if !(self.t[0]..=self.t[n]).contains(&t_m) {
+            return 0.0;
+        }
+        let cdf = self.cdf(component);
+        let s = self.t[1..=n].partition_point(|&b| b < t_m).min(n - 1);
+        let length = self.t[s + 1] - self.t[s];
+        if length > 0.0 {
+            (cdf[s + 1] - cdf[s]) / length
+        } else {
+            0.0
+        }
+    }
+
+    /// A distance from `component` for the uniform variate `u` ∈ [0, 1) and
+    /// its density, m⁻¹.
+    pub fn sample(&self, component: Component, u: f64) -> (f64, f64) {
+        let n = self.segments;
+        let cdf = self.cdf(component);
         // First segment whose upper cumulative probability exceeds u.
-        let s = self.cdf[1..=n].partition_point(|&c| c <= u).min(n - 1);
-        let p = self.cdf[s + 1] - self.cdf[s];
+        let s = cdf[1..=n].partition_point(|&c| c <= u).min(n - 1);
+        let p = cdf[s + 1] - cdf[s];
         if p <= 0.0 {
             // Only reachable through rounding at u ≈ 1: take the segment's end.
             return (self.t[s + 1], 0.0);
         }
-        let f = ((u - self.cdf[s]) / p).clamp(0.0, 1.0);
+        let f = ((u - cdf[s]) / p).clamp(0.0, 1.0);
         let length = self.t[s + 1] - self.t[s];
         (self.t[s] + f * length, p / length)
+    }
+}
+
+/// Which density of an [`InScatterDistribution`]: the whole mixture (for
+/// next-event points: single scattering follows the sunlight) or its
+/// skylight part alone (∝ σ_s T, for the point a path goes on from: multiple
+/// scattering follows the air the skylight reaches).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Component {
+    Mixture,
+    Skylight,
+}
+
+/// Zenith cells of [`CameraDensities`] (square-root spacing away from the
+/// horizon on both sides: fine where the ray geometry changes fastest).
+const CAMERA_ZENITH_CELLS: usize = 128;
+/// Azimuth cells over 0–180° from the sun's azimuth (the scene is mirror
+/// symmetric about the sun's vertical plane).
+const CAMERA_AZIMUTH_CELLS: usize = 32;
+/// Share of the cached density in a camera ray's mixture; the rest is uniform
+/// over the ray's span (defensive: positive even where the cached density
+/// underflowed).
+const CACHED_SHARE: f64 = 0.97;
+/// Wavelengths of the cached densities' lanes, nm: spread over the
+/// colour-matching functions' support, so one density serves every path's
+/// hero-rotated wavelengths.
+const CAMERA_WAVELENGTHS_NM: [f64; LANES] = [440.0, 510.0, 580.0, 650.0];
+
+/// [`InScatterDistribution`]s of camera rays, cached by view direction.
+///
+/// Every camera ray of a render starts at the observer, so its expected
+/// sunlight depends only on its direction: on the view zenith angle and the
+/// azimuth from the sun (the atmosphere is spherically symmetric, the sun
+/// fixes a mirror plane). Each cell's density is built on first use, from the
+/// cell's central ray, and serves every ray through the cell, mapped affinely
+/// from the central ray's span onto the ray's own (entry to entry, exit to
+/// exit: the dense air at a ground hit or at a grazing ray's perigee lands
+/// where it is on the ray) and mixed with a uniform density over the span
+/// ([`CameraRayDensity`]). No cell straddles the horizon, so the rays of one
+/// cell all hit the ground or all miss it. Building is deterministic, so
+/// images do not depend on which thread builds a cell.
+pub struct CameraDensities {
+    origin_m: DVec3,
+    sun_direction: DVec3,
+    up: DVec3,
+    /// Horizontal unit vectors: toward the sun's azimuth, and 90° from it.
+    toward_sun: DVec3,
+    across_sun: DVec3,
+    /// Cosine of the view zenith angle of the planet's horizon.
+    mu_horizon: f64,
+    /// Largest view-zenith cosine whose ray meets the atmosphere (1 inside
+    /// it; the atmosphere's limb for an observer above it).
+    mu_top: f64,
+    lanes: SpectralLanes,
+    cells: Vec<OnceLock<Option<Box<InScatterDistribution>>>>,
+}
+
+impl CameraDensities {
+    /// An empty cache for rays from `origin_m` with the sun along `sun_direction`.
+    pub fn new(medium: &Medium, origin_m: DVec3, sun_direction: DVec3) -> Self {
+        let up = origin_m.normalize();
+        let horizontal = sun_direction - up * sun_direction.dot(up);
+        let toward_sun = if horizontal.length() > 1e-9 {
+            horizontal.normalize()
+        } else {
+            super::integrator::orthonormal_basis(up).0
+        };
+        let r = origin_m.length();
+        Self {
+            origin_m,
+            sun_direction,
+            up,
+            toward_sun,
+            across_sun: up.cross(toward_sun),
+            mu_horizon: horizon_cosine(medium.planet_radius_m, r),
+            mu_top: if r > medium.top_radius_m {
+                horizon_cosine(medium.top_radius_m, r)
+            } else {
+                1.0
+            },
+            lanes: SpectralLanes::new(CAMERA_WAVELENGTHS_NM, LANES, medium, false),
+            cells: (0..CAMERA_ZENITH_CELLS * CAMERA_AZIMUTH_CELLS)
+                .map(|_| OnceLock::new())
+                .collect(),
+        }
+    }
+
+    /// The observer's position, m, planet-centred.
+    pub fn origin_m(&self) -> DVec3 {
+        self.origin_m
+    }
+
+    /// Cell of the view direction `dir`, or `None` above the atmosphere's limb.
+    fn cell_index(&self, dir: DVec3) -> Option<usize> {
+        let mu = dir.dot(self.up).clamp(-1.0, 1.0);
+        let s = if mu >= self.mu_horizon {
+            if mu > self.mu_top {
+                return None;
+            }
+            0.5 + 0.5 * ((mu - self.mu_horizon) / (self.mu_top - self.mu_horizon)).sqrt()
+        } else {
+            0.5 - 0.5 * ((self.mu_horizon - mu) / (1.0 + self.mu_horizon)).sqrt()
+        };
+        let i = ((s * CAMERA_ZENITH_CELLS as f64) as usize).min(CAMERA_ZENITH_CELLS - 1);
+        let x = dir.dot(self.toward_sun);
+        let y = dir.dot(self.across_sun).abs();
+        let phi = y.atan2(x);
+        let k = ((phi / std::f64::consts::PI * CAMERA_AZIMUTH_CELLS as f64) as usize)
+            .min(CAMERA_AZIMUTH_CELLS - 1);
+        Some(i * CAMERA_AZIMUTH_CELLS + k)
+    }
+
+    /// The central direction of cell `index`.
+    fn cell_direction(&self, index: usize) -> DVec3 {
+        let (i, k) = (index / CAMERA_AZIMUTH_CELLS, index % CAMERA_AZIMUTH_CELLS);
+        let s = (i as f64 + 0.5) / CAMERA_ZENITH_CELLS as f64;
+        let mu = if s >= 0.5 {
+            self.mu_horizon + (2.0 * s - 1.0).powi(2) * (self.mu_top - self.mu_horizon)
+        } else {
+            self.mu_horizon - (1.0 - 2.0 * s).powi(2) * (1.0 + self.mu_horizon)
+        };
+        let phi = (k as f64 + 0.5) / CAMERA_AZIMUTH_CELLS as f64 * std::f64::consts::PI;
+        let sin = (1.0 - mu * mu).max(0.0).sqrt();
+        (self.toward_sun * (sin * phi.cos()) + self.across_sun * (sin * phi.sin()) + self.up * mu)
+            .normalize()
+    }
+
+    fn build(&self, medium: &Medium, index: usize) -> Option<Box<InScatterDistribution>> {
+        let dir = self.cell_direction(index);
+        let span = medium.span(self.origin_m, dir)?;
+        let mu_sun = dir.dot(self.sun_direction);
+        let phase_rayleigh: Lanes = std::array::from_fn(|j| {
+            crate::physics::rayleigh::phase(mu_sun, self.lanes.rayleigh_gamma[j])
+        });
+        let phase_aerosol = medium.aerosol_phase.eval(mu_sun, medium.aerosol_g);
+        InScatterDistribution::new(
+            medium,
+            Some(medium.sun_columns()),
+            &self.lanes,
+            self.origin_m,
+            dir,
+            span,
+            self.sun_direction,
+            &phase_rayleigh,
+            phase_aerosol,
+        )
+        .map(Box::new)
+    }
+
+    /// The density for the camera ray along `dir` over its `span`.
+    pub fn density<'a>(
+        &'a self,
+        medium: &Medium,
+        dir: DVec3,
+        span: super::medium::Span,
+    ) -> CameraRayDensity<'a> {
+        let cell = self.cell_index(dir).and_then(|i| {
+            self.cells[i]
+                .get_or_init(|| self.build(medium, i))
+                .as_deref()
+        });
+        let length = span.t_exit - span.t_enter;
+        let cell = cell.filter(|c| c.length() > 0.0 && length > 0.0);
+        CameraRayDensity {
+            share: if cell.is_some() { CACHED_SHARE } else { 0.0 },
+            // Cell distance = cell entry + (t − t_enter) · scale.
+            scale: cell.map_or(1.0, |c| c.length() / length),
+            cell,
+            t_enter: span.t_enter,
+            length,
+        }
+    }
+}
+
+/// Distances along one camera ray: the cached density of its cell, mapped
+/// affinely onto the ray's span, mixed with a uniform density over the span
+/// (the defensive component).
+pub struct CameraRayDensity<'a> {
+    cell: Option<&'a InScatterDistribution>,
+    share: f64,
+    /// Cell span length over this ray's span length.
+    scale: f64,
+    t_enter: f64,
+    length: f64,
+}
+
+impl CameraRayDensity<'_> {
+    /// A distance from the cell's `component` (mixed with the defensive
+    /// uniform density) for the uniform variate `u` ∈ [0, 1) and its
+    /// density, m⁻¹.
+    pub fn sample(&self, component: Component, u: f64) -> (f64, f64) {
+        let t = match self.cell {
+            Some(cell) if u < self.share => {
+                let t_cell = cell.sample(component, u / self.share).0;
+                self.t_enter + (t_cell - cell.t_enter()) / self.scale
+            }
+            _ => self.t_enter + (u - self.share) / (1.0 - self.share) * self.length,
+        };
+        let t = t.clamp(self.t_enter, self.t_enter + self.length);
+        (t, self.density_at(component, t))
+    }
+
+    /// The density of [`Self::sample`] at `t_m`, m⁻¹ (zero outside the span).
+    pub fn density_at(&self, component: Component, t_m: f64) -> f64 {
+        if !(self.t_enter..=self.t_enter + self.length).contains(&t_m) || self.length <= 0.0 {
+            return 0.0;
+        }
+        let cached = self.cell.map_or(0.0, |c| {
+            let t_cell = c.t_enter() + (t_m - self.t_enter) * self.scale;
+            self.share * self.scale * c.density_at(component, t_cell)
+        });
+        cached + (1.0 - self.share) / self.length
+    }
+
+    /// See [`InScatterDistribution::shares`] (even odds without a cell).
+    pub fn shares(&self, ground_albedo: f64) -> (f64, f64) {
+        self.cell.map_or((1.0, 1.0), |c| c.shares(ground_albedo))
     }
 }
 
@@ -367,7 +631,7 @@ mod tests {
         let n = 200_000;
         let mut estimate = 0.0;
         for i in 0..n {
-            let (t, p) = d.sample((f64::from(i) + 0.5) / f64::from(n));
+            let (t, p) = d.sample(Component::Mixture, (f64::from(i) + 0.5) / f64::from(n));
             assert!(t >= span.t_enter && t <= span.t_exit && p > 0.0);
             estimate += f(t) / p / f64::from(n);
         }
@@ -378,5 +642,68 @@ mod tests {
             .sum();
         let ratio = estimate / reference;
         assert!((ratio - 1.0).abs() < 1e-3, "{estimate} vs {reference}");
+    }
+
+    #[test]
+    fn cells_contain_their_central_directions() {
+        let atmosphere = Atmosphere::new(AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        for altitude_m in [2.0, 400e3] {
+            let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + altitude_m);
+            let sun = DVec3::new(0.3, -0.5, 0.2).normalize();
+            let cache = CameraDensities::new(&medium, origin, sun);
+            for index in 0..CAMERA_ZENITH_CELLS * CAMERA_AZIMUTH_CELLS {
+                assert_eq!(cache.cell_index(cache.cell_direction(index)), Some(index));
+            }
+            // Above the atmosphere's limb no ray meets the air.
+            assert_eq!(cache.cell_index(DVec3::Z).is_none(), altitude_m > 100e3);
+        }
+    }
+
+    #[test]
+    fn camera_ray_samples_follow_their_density() {
+        // E[f(t)/p(t)] = ∫ f dt on rays that are not their cell's central ray
+        // (the affine map and the defensive part included), for f the
+        // scattering coefficient at 550 nm: from the ground toward the
+        // horizon and down, and from orbit through the limb and at the Earth.
+        let atmosphere = Atmosphere::new(AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        let lanes = SpectralLanes::new([450.0, 550.0, 650.0, 750.0], 4, &medium, false);
+        let sun = DVec3::new(0.0, 0.99, 0.1).normalize();
+        for (altitude_m, dir) in [
+            (2.0, DVec3::new(0.3, 0.95, 0.02)),
+            (2.0, DVec3::new(0.6, 0.1, -0.05)),
+            (400e3, DVec3::new(0.9, 0.1, -0.33)),
+            (400e3, DVec3::new(0.2, 0.5, -0.8)),
+        ] {
+            let dir = dir.normalize();
+            let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + altitude_m);
+            let cache = CameraDensities::new(&medium, origin, sun);
+            let span = medium.span(origin, dir).unwrap();
+            let d = cache.density(&medium, dir, span);
+            let f = |t: f64| {
+                medium
+                    .coefficients((origin + dir * t).length(), &lanes)
+                    .scattering(1)
+            };
+            let n = 200_000;
+            let mut estimate = 0.0;
+            for i in 0..n {
+                let (t, p) = d.sample(Component::Mixture, (f64::from(i) + 0.5) / f64::from(n));
+                assert!(t >= span.t_enter && t <= span.t_exit && p > 0.0);
+                assert!((p / d.density_at(Component::Mixture, t) - 1.0).abs() < 1e-9);
+                estimate += f(t) / p / f64::from(n);
+            }
+            let steps = 200_000;
+            let h = (span.t_exit - span.t_enter) / f64::from(steps);
+            let reference: f64 = (0..steps)
+                .map(|i| f(span.t_enter + (f64::from(i) + 0.5) * h) * h)
+                .sum();
+            let ratio = estimate / reference;
+            assert!(
+                (ratio - 1.0).abs() < 2e-3,
+                "{altitude_m} m {dir}: {estimate} vs {reference}"
+            );
+        }
     }
 }
