@@ -316,6 +316,16 @@ impl Scene {
                 ),
             ));
         }
+        let branches = crate::render::integrator::MAX_BRANCHES;
+        if !(1..=branches).contains(&(i.camera_branches as usize)) {
+            return Err(SceneError::new(
+                "camera branches",
+                format!(
+                    "{} is outside the valid range 1 to {branches}",
+                    i.camera_branches
+                ),
+            ));
+        }
         check_range("sun lobe", i.sun_lobe, 0.0, 1.0)?;
         Ok(())
     }
@@ -346,5 +356,20 @@ mod tests {
         let e = Scene::preset("noon").unwrap_err();
         assert!(e.to_string().contains("midday"), "{e}");
         assert!(Scene::from_toml("[sun]\nelevation = 3").is_err());
+    }
+
+    #[test]
+    fn integrator_options_are_range_checked() {
+        for (toml, parameter, range) in [
+            ("wavelengths_per_path = 0", "wavelengths per path", "1 to 4"),
+            ("camera_samples = 9", "camera samples", "0 to 8"),
+            ("camera_branches = 0", "camera branches", "1 to 8"),
+            ("sunlight_samples = 9", "sunlight samples", "0 to 8"),
+            ("sun_lobe = 1.5", "sun lobe", "0 to 1"),
+        ] {
+            let e = Scene::from_toml(&format!("[render.integrator]\n{toml}")).unwrap_err();
+            assert_eq!(e.parameter, parameter);
+            assert!(e.to_string().contains(range), "{e}");
+        }
     }
 }

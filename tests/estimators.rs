@@ -411,20 +411,22 @@ fn camera_ray_densities_are_unbiased() {
         let sun_dir = direction_from_az_el(sun_az, sun_el);
         let view = direction_from_az_el(az, el);
         let camera = CameraDensities::new(&medium, origin, sun_dir);
-        let run = |camera_samples: u32, order: Option<u32>, paths: u32| {
-            let options = IntegratorOptions {
-                camera_samples,
-                max_scattering_order: order,
-                ..IntegratorOptions::default()
+        let run =
+            |(camera_samples, camera_branches): (u32, u32), order: Option<u32>, paths: u32| {
+                let options = IntegratorOptions {
+                    camera_samples,
+                    camera_branches,
+                    max_scattering_order: order,
+                    ..IntegratorOptions::default()
+                };
+                let integrator =
+                    Integrator::new(&medium, &options, sun_dir).with_camera_densities(&camera);
+                estimate(paths, |rng| integrator.radiance(origin, view, &lanes, rng))
             };
-            let integrator =
-                Integrator::new(&medium, &options, sun_dir).with_camera_densities(&camera);
-            estimate(paths, |rng| integrator.radiance(origin, view, &lanes, rng))
-        };
         // Single scattering against the quadrature where the sun is high
         // (the quadrature treats the sun as a point, which matters only in
         // the penumbra at twilight), else against delta tracking.
-        let (single, single_se) = run(2, Some(1), 20_000);
+        let (single, single_se) = run((2, 1), Some(1), 20_000);
         let (single_reference, single_reference_se) = if sun_el > 5.0 {
             let quadrature = std::array::from_fn(|j| {
                 single_scattering_quadrature(
@@ -437,7 +439,7 @@ fn camera_ray_densities_are_unbiased() {
             });
             (quadrature, [0.0; LANES])
         } else {
-            run(0, Some(1), 40_000)
+            run((0, 1), Some(1), 40_000)
         };
         for j in 0..LANES {
             let expected = single_reference[j];
@@ -448,16 +450,20 @@ fn camera_ray_densities_are_unbiased() {
                 single[j],
             );
         }
-        let (reference, reference_se) = run(0, None, 40_000);
-        let (all, all_se) = run(2, None, 20_000);
-        for j in 0..LANES {
-            let combined = reference_se[j].hypot(all_se[j]);
-            assert!(
-                (all[j] - reference[j]).abs() < 4.0 * combined,
-                "{altitude_m} m, view ({az}, {el}), lane {j}: {} vs {} ± {combined}",
-                all[j],
-                reference[j]
-            );
+        // All orders, with one and with several branches (whose roulette
+        // plays on the weight relative to the branch's start).
+        let (reference, reference_se) = run((0, 1), None, 40_000);
+        for variant in [(1, 1), (2, 4)] {
+            let (all, all_se) = run(variant, None, 10_000);
+            for j in 0..LANES {
+                let combined = reference_se[j].hypot(all_se[j]);
+                assert!(
+                    (all[j] - reference[j]).abs() < 4.0 * combined,
+                    "{altitude_m} m, view ({az}, {el}), {variant:?}, lane {j}: {} vs {} ± {combined}",
+                    all[j],
+                    reference[j]
+                );
+            }
         }
     }
 }

@@ -1,7 +1,21 @@
 //! The spectral path tracer: one camera path per call, several wavelengths
 //! per path.
 //!
-//! **Estimator.** Along every ray segment a majorant process proposes
+//! **Camera rays** (with a [`CameraDensities`] table and `camera_samples` >
+//! 0, the default): the segment from the observer is estimated through
+//! in-scattering points drawn from the expected sunlight along it, tabulated
+//! once per render by view direction. Each point gets a next-event estimate
+//! toward the sun (single scattering: rel. std 0.2–1 per path where delta
+//! tracking's is 1–20, `BENCHMARKS.md`), and the path then *branches*:
+//! `camera_branches` continuations, each from its own point drawn from the
+//! skylight part of the density (or from the ground), weighted 1/N. Every
+//! camera path thus carries the multiply scattered light, which holds most
+//! of the variance, and the camera segment's cost is shared by N estimates
+//! of it. Scattering there is forced, not sampled, so a branch starts with
+//! the weight ≈ the chance that light scatters at all; roulette plays on the
+//! weight relative to that start.
+//!
+//! **Estimator.** Along every other segment a majorant process proposes
 //! tentative collisions (delta tracking over shell-wise majorants; see
 //! [`super::medium`]). At each tentative collision at distance t the
 //! null-collision form of the radiative transfer equation,
@@ -17,13 +31,11 @@
 //! ends paths without bias.
 //!
 //! **Alternatives kept as options** (not faster at equal time on the
-//! benchmark scenes; see `BENCHMARKS.md`): `camera_samples` replaces the
-//! camera ray's collisions by points drawn from the expected sunlight along
-//! it, from a per-render table by view direction ([`CameraDensities`]);
-//! `sunlight_samples` does so on every segment, building the density per
-//! segment ([`super::sunlight`]; some 100× less variance for single
-//! scattering at twilight, but ~15× the cost per path); and `sun_lobe` mixes
-//! the phase function about the sun into the scattering directions.
+//! benchmark scenes; see `BENCHMARKS.md`): `sunlight_samples` estimates
+//! every segment like the camera ray's, building the density per segment
+//! ([`super::sunlight`]; some 100× less variance for single scattering at
+//! twilight, but ~15× the cost per path); and `sun_lobe` mixes the phase
+//! function about the sun into the scattering directions.
 //!
 //! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
 //! Every random decision (real vs. null, phase-function component and angle)
@@ -55,12 +67,16 @@ pub struct IntegratorOptions {
     pub shadow_transmittance: TransmittanceEstimator,
     /// Next-event estimation toward the sun.
     pub next_event_estimation: bool,
-    /// In-scattering points on each camera ray, drawn from the expected
-    /// sunlight along it (cached per view direction, [`CameraDensities`];
-    /// stratified; the path goes on from a further point drawn from the
-    /// skylight part), 0–8. 0 (the default) = delta tracking on camera rays
-    /// too.
+    /// Next-event points on each camera ray, drawn from the expected
+    /// sunlight along it (tabulated per view direction, [`CameraDensities`];
+    /// stratified), 0–8; default 1. 0 = delta tracking on camera rays too.
     pub camera_samples: u32,
+    /// Paths the camera ray branches into at its segment (each from its own
+    /// point, drawn from the skylight part of the density, or ground bounce,
+    /// weighted 1/N), 1–8, with `camera_samples` > 0; default 4: the camera
+    /// segment's cost is shared by several estimates of the multiply
+    /// scattered light, which carries most of the variance.
+    pub camera_branches: u32,
     /// Next-event points per path segment drawn from the expected-sunlight
     /// density of [`super::sunlight`] (stratified; the path goes on from a
     /// further point drawn from its skylight part), 0–8. 0 (the default) =
@@ -83,7 +99,8 @@ impl Default for IntegratorOptions {
             tight_majorants: true,
             shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
             next_event_estimation: true,
-            camera_samples: 0,
+            camera_samples: 1,
+            camera_branches: 4,
             sunlight_samples: 0,
             sun_lobe: 0.0,
             russian_roulette: true,
@@ -100,6 +117,16 @@ pub type Radiance = Lanes;
 const ROULETTE_CAP_DEPTH: u32 = 64;
 /// Most in-scattering points on one segment.
 pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
+/// Most branches of a camera path.
+pub const MAX_BRANCHES: usize = 8;
+
+/// Where a path starts: position, direction, scatterings so far, and the
+/// scale of its weight for roulette (see [`survives_roulette`]).
+type Start = (DVec3, DVec3, u32, f64);
+/// Where a path goes on: position, direction, weight.
+type Vertex = (DVec3, DVec3, Lanes);
+/// The vertices a segment branches into.
+type Branches = [Option<Vertex>; MAX_BRANCHES];
 /// Ground vertices sit this far above the surface, m.
 const SURFACE_OFFSET_M: f64 = 1e-3;
 
@@ -222,27 +249,41 @@ impl<'a> Integrator<'a> {
             .filter(|c| opts.camera_samples > 0 && c.origin_m() == origin);
         match camera {
             Some(camera) if opts.next_event_estimation => {
-                let next = self.camera_segment(camera, dir, lanes, &mut radiance, rng);
-                if let Some((x, new_dir, beta)) = next {
+                let branches = self.camera_segment(camera, dir, lanes, &mut radiance, rng);
+                // A branch's weight is the chance that light scattered there
+                // at all (forced, not sampled) over the branch count, which
+                // roulette must not read as a dim path: it plays on the
+                // weight relative to the branch's start.
+                for (x, new_dir, beta) in branches.into_iter().flatten() {
+                    let start = beta[..lanes.active].iter().copied().fold(0.0, f64::max);
+                    let scale = if start > 0.0 { 1.0 / start } else { 1.0 };
+                    let from = (x, new_dir, 1, scale);
                     if opts.sunlight_samples > 0 {
-                        self.trace_sunlit(x, new_dir, 1, beta, lanes, &mut radiance, rng);
+                        self.trace_sunlit(from, beta, lanes, &mut radiance, rng);
                     } else {
-                        self.trace(x, new_dir, 1, beta, lanes, &mut radiance, rng);
+                        self.trace(from, beta, lanes, &mut radiance, rng);
                     }
                 }
             }
             _ if opts.sunlight_samples > 0 && opts.next_event_estimation => {
-                self.trace_sunlit(origin, dir, 0, [1.0; LANES], lanes, &mut radiance, rng);
+                let from = (origin, dir, 0, 1.0);
+                self.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, rng);
             }
-            _ => self.trace(origin, dir, 0, [1.0; LANES], lanes, &mut radiance, rng),
+            _ => self.trace(
+                (origin, dir, 0, 1.0),
+                [1.0; LANES],
+                lanes,
+                &mut radiance,
+                rng,
+            ),
         }
         radiance
     }
 
     /// The camera ray's segment, estimated through in-scattering points from
     /// the cached expected-sunlight density ([`CameraDensities`]) like one
-    /// segment of [`Self::trace_sunlit`]; returns the vertex the path goes
-    /// on from, if any.
+    /// segment of [`Self::trace_sunlit`]; returns the vertices the path
+    /// branches into.
     fn camera_segment(
         &self,
         camera: &CameraDensities,
@@ -250,12 +291,12 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<(DVec3, DVec3, Lanes)> {
+    ) -> Branches {
         let origin = camera.origin_m();
         let beta = [1.0; LANES];
         let Some(span) = self.medium.span(origin, dir) else {
             self.add_sun_disc(dir, &beta, lanes, radiance);
-            return None;
+            return [None; MAX_BRANCHES];
         };
         let density = camera.density(self.medium, dir, span);
         let n = (self.options.camera_samples as usize).min(MAX_SUNLIGHT_SAMPLES);
@@ -265,7 +306,16 @@ impl<'a> Integrator<'a> {
             span,
             depth: 0,
         };
-        self.estimate_segment(&segment, &beta, Some(&density), n, lanes, radiance, rng)
+        let branches = (self.options.camera_branches as usize).clamp(1, MAX_BRANCHES);
+        self.estimate_segment(
+            &segment,
+            &beta,
+            Some(&density),
+            (n, branches),
+            lanes,
+            radiance,
+            rng,
+        )
     }
 
     /// A path whose every segment is estimated through in-scattering points
@@ -284,12 +334,9 @@ impl<'a> Integrator<'a> {
     /// path continues either from the medium point or from the ground, chosen
     /// by their expected shares (weights divided by the choice's probability).
     /// Every transmittance on the segment comes from one tracking pass.
-    #[allow(clippy::too_many_arguments)]
     fn trace_sunlit(
         &self,
-        origin: DVec3,
-        dir: DVec3,
-        depth: u32,
+        (origin, dir, depth, split): Start,
         beta: Lanes,
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
@@ -305,7 +352,7 @@ impl<'a> Integrator<'a> {
             };
             if self.options.russian_roulette
                 && depth >= 2
-                && !survives_roulette(beta, lanes.active, depth, rng)
+                && !survives_roulette(beta, lanes.active, depth, split, rng)
             {
                 break;
             }
@@ -367,24 +414,25 @@ impl<'a> Integrator<'a> {
             depth,
         };
         let distribution = distribution.as_ref().map(|d| d as &dyn SegmentDensity);
-        self.estimate_segment(&segment, beta, distribution, n, lanes, radiance, rng)
+        self.estimate_segment(&segment, beta, distribution, (n, 1), lanes, radiance, rng)[0]
     }
 
     /// The light along `segment` (reached with weight `beta`) through `n`
     /// in-scattering points drawn from `distribution`, each with a next-event
-    /// estimate, plus what lies at the segment's end; returns the vertex the
-    /// path goes on from (see [`Self::trace_sunlit`]).
+    /// estimate, plus what lies at the segment's end; returns the vertices
+    /// the path goes on from, one per branch of `(n, branches)`, each
+    /// weighted 1/branches (see [`Self::trace_sunlit`]).
     #[allow(clippy::too_many_arguments)]
     fn estimate_segment(
         &self,
         segment: &Segment,
         beta: &Lanes,
         distribution: Option<&dyn SegmentDensity>,
-        n: usize,
+        (n, branches): (usize, usize),
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<(DVec3, DVec3, Lanes)> {
+    ) -> Branches {
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
         let &Segment {
@@ -412,23 +460,27 @@ impl<'a> Integrator<'a> {
             (Some(_), true) => 1.0,
             _ => 0.0,
         };
-        let from_medium = rng.uniform() < p_medium;
+        let mut from_medium = [false; MAX_BRANCHES];
+        for f in &mut from_medium[..branches] {
+            *f = rng.uniform() < p_medium;
+        }
         // n next-event points stratified in the whole density's cumulative
-        // probability, and the point the path goes on from, drawn from the
-        // skylight part alone; sorted for the transmittance pass. A point
+        // probability, and the points the branches go on from, stratified in
+        // the skylight part's; sorted for the transmittance pass. A point
         // outside the span (only through rounding) keeps density 0 and is
         // skipped.
-        let mut samples = [(0.0, 0.0, false); MAX_SUNLIGHT_SAMPLES + 1];
+        let mut samples = [(0.0, 0.0, None); MAX_SUNLIGHT_SAMPLES + MAX_BRANCHES];
         let mut m = 0;
         if let Some(d) = distribution {
             for k in 0..n {
                 let (t, pdf) = d.sample(Component::Mixture, (k as f64 + rng.uniform()) / n as f64);
-                samples[m] = (t, pdf, false);
+                samples[m] = (t, pdf, None);
                 m += 1;
             }
-            if from_medium {
-                let (t, pdf) = d.sample(Component::Skylight, rng.uniform());
-                samples[m] = (t, pdf, true);
+            for b in (0..branches).filter(|&b| from_medium[b]) {
+                let u = (b as f64 + rng.uniform()) / branches as f64;
+                let (t, pdf) = d.sample(Component::Skylight, u);
+                samples[m] = (t, pdf, Some(b));
                 m += 1;
             }
         }
@@ -438,7 +490,7 @@ impl<'a> Integrator<'a> {
             }
         }
         samples[..m].sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut points = [(0.0, [0.0; LANES]); MAX_SUNLIGHT_SAMPLES + 1];
+        let mut points = [(0.0, [0.0; LANES]); MAX_SUNLIGHT_SAMPLES + MAX_BRANCHES];
         for (point, sample) in points.iter_mut().zip(&samples[..m]) {
             point.0 = sample.0;
         }
@@ -452,21 +504,22 @@ impl<'a> Integrator<'a> {
             &mut points[..m],
             rng,
         );
-        let mut next = None;
-        for (&(t, tr_view), &(_, density, continues)) in points.iter().zip(&samples[..m]) {
+        let mut next = [None; MAX_BRANCHES];
+        let share = 1.0 / branches as f64;
+        for (&(t, tr_view), &(_, density, branch)) in points.iter().zip(&samples[..m]) {
             if density <= 0.0 {
                 continue;
             }
             let x = origin + dir * t;
             let c = self.medium.coefficients(x.length(), lanes);
-            if continues {
+            if let Some(b) = branch {
                 let (new_dir, pdf) = self.sample_scatter_direction(dir, &c, lanes, rng);
                 let mu = dir.dot(new_dir);
                 let new_beta = std::array::from_fn(|j| {
-                    beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
+                    share * beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
                         / (density * pdf * p_medium)
                 });
-                next = Some((x, new_dir, new_beta));
+                next[b] = Some((x, new_dir, new_beta));
                 continue;
             }
             let to_sun = self.sample_sun_direction(rng);
@@ -486,8 +539,12 @@ impl<'a> Integrator<'a> {
         if span.hits_ground {
             let normal = (origin + dir * span.t_exit).normalize();
             let bounce = self.ground_vertex(normal, depth, &through, lanes, radiance, rng);
-            if !from_medium && ground_goes_on {
-                next = bounce.map(|(x, d, b)| (x, d, b.map(|v| v / (1.0 - p_medium))));
+            if let (Some((x, _, b)), true) = (bounce, ground_goes_on) {
+                let weight = b.map(|v| v * share / (1.0 - p_medium));
+                for (slot, _) in next.iter_mut().zip(&from_medium).filter(|(_, &f)| !f) {
+                    *slot = Some((x, cosine_sample_hemisphere(normal, rng), weight));
+                }
+                next[branches..].fill(None);
             }
         } else if depth == 0 {
             self.add_sun_disc(dir, &through, lanes, radiance);
@@ -587,13 +644,11 @@ impl<'a> Integrator<'a> {
     }
 
     /// Continue a path from `origin` along `dir` after `depth` scatterings
-    /// with weight `beta`, adding what it finds to `radiance`.
-    #[allow(clippy::too_many_arguments)]
+    /// (one of `split` branches) with weight `beta`, adding what it finds to
+    /// `radiance`.
     fn trace(
         &self,
-        origin: DVec3,
-        dir: DVec3,
-        depth: u32,
+        (origin, dir, depth, split): Start,
         beta: Lanes,
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
@@ -683,7 +738,7 @@ impl<'a> Integrator<'a> {
             }
             // Russian roulette on the largest lane weight.
             if opts.russian_roulette && depth >= 2 {
-                if !survives_roulette(&mut beta, active, depth, rng) {
+                if !survives_roulette(&mut beta, active, depth, split, rng) {
                     break;
                 }
             } else if beta[..active].iter().all(|&b| b == 0.0) {
@@ -725,11 +780,18 @@ struct Segment {
 }
 
 /// Russian roulette after `depth` scatterings: survive with the largest
-/// active lane weight (at most 1, and at most 0.9 past
-/// [`ROULETTE_CAP_DEPTH`], so paths end with probability one), dividing
-/// `beta` by that probability on survival.
-fn survives_roulette(beta: &mut Lanes, active: usize, depth: u32, rng: &mut Rng) -> bool {
-    let mut survive = beta[..active].iter().copied().fold(0.0, f64::max).min(1.0);
+/// active lane weight times `split` (the weight relative to its value where
+/// the path started; at most 1, and at most 0.9 past [`ROULETTE_CAP_DEPTH`],
+/// so paths end with probability one), dividing `beta` by that probability
+/// on survival.
+fn survives_roulette(
+    beta: &mut Lanes,
+    active: usize,
+    depth: u32,
+    split: f64,
+    rng: &mut Rng,
+) -> bool {
+    let mut survive = (split * beta[..active].iter().copied().fold(0.0, f64::max)).min(1.0);
     if depth >= ROULETTE_CAP_DEPTH {
         survive = survive.min(0.9);
     }

@@ -46,6 +46,9 @@ pub struct Renderer {
     /// Expected-sunlight densities of camera rays, built per view direction
     /// on first use.
     camera_densities: CameraDensities,
+    /// The scene's integrator options with plain delta-tracked camera rays,
+    /// for the first pass (see [`Self::integrator`]).
+    draft_options: IntegratorOptions,
 }
 
 /// Result of one pass.
@@ -82,6 +85,10 @@ impl Renderer {
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
         Ok(Self {
             camera_densities: CameraDensities::new(&medium, observer_m, sun_direction),
+            draft_options: IntegratorOptions {
+                camera_samples: 0,
+                ..scene.render.integrator.clone()
+            },
             observer_m,
             sun_direction,
             cmf,
@@ -105,13 +112,19 @@ impl Renderer {
         Film::new(self.scene.render.width, self.scene.render.height)
     }
 
-    fn integrator(&self) -> Integrator<'_> {
-        Integrator::new(
-            &self.medium,
-            &self.scene.render.integrator,
-            self.sun_direction,
-        )
-        .with_camera_densities(&self.camera_densities)
+    /// The integrator for pass `pass`. The first pass traces plain
+    /// delta-tracked camera paths (no camera-ray densities to build, no
+    /// branches), so the first image of a progressive render — the preview's
+    /// first frame — comes fast; every pass is an unbiased estimate, so the
+    /// film's average of them stays unbiased.
+    fn integrator(&self, pass: u32) -> Integrator<'_> {
+        let options = if pass == 0 {
+            &self.draft_options
+        } else {
+            &self.scene.render.integrator
+        };
+        Integrator::new(&self.medium, options, self.sun_direction)
+            .with_camera_densities(&self.camera_densities)
     }
 
     /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)
@@ -184,7 +197,7 @@ impl Renderer {
         pass: u32,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> PassStats {
-        let integrator = self.integrator();
+        let integrator = self.integrator(pass);
         let width = film.width as usize;
         let discarded = AtomicU64::new(0);
         let rows_done = AtomicU64::new(0);
@@ -232,7 +245,8 @@ impl Renderer {
         samples: u32,
     ) -> Vec<SpectralEstimate> {
         let dir = direction_from_az_el(view_azimuth_deg, 90.0 - view_zenith_deg);
-        let integrator = self.integrator();
+        // Any pass but the first: the scene's own options.
+        let integrator = self.integrator(1);
         wavelengths_nm
             .par_chunks(LANES)
             .enumerate()

@@ -363,10 +363,10 @@ pub enum Component {
 
 /// Zenith cells of [`CameraDensities`] (square-root spacing away from the
 /// horizon on both sides: fine where the ray geometry changes fastest).
-const CAMERA_ZENITH_CELLS: usize = 128;
+const CAMERA_ZENITH_CELLS: usize = 64;
 /// Azimuth cells over 0–180° from the sun's azimuth (the scene is mirror
 /// symmetric about the sun's vertical plane).
-const CAMERA_AZIMUTH_CELLS: usize = 32;
+const CAMERA_AZIMUTH_CELLS: usize = 16;
 /// Share of the cached density in a camera ray's mixture; the rest is uniform
 /// over the ray's span (defensive: positive even where the cached density
 /// underflowed).
