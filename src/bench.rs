@@ -529,27 +529,17 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("camera_branches=1", |s| {
             s.render.integrator.camera_branches = 1;
         }),
-        ("camera_branches=2", |s| {
-            s.render.integrator.camera_branches = 2;
-        }),
         ("camera_branches=8", |s| {
             s.render.integrator.camera_branches = 8;
         }),
         ("sunlight_samples=1", |s| {
             s.render.integrator.sunlight_samples = 1;
         }),
-        ("sunlight_samples=2", |s| {
-            s.render.integrator.sunlight_samples = 2;
+        ("sun_lobe=0", |s| {
+            s.render.integrator.sun_lobe = 0.0;
         }),
         ("sun_lobe=0.5", |s| {
             s.render.integrator.sun_lobe = 0.5;
-        }),
-        ("sun_lobe=0.3", |s| {
-            s.render.integrator.sun_lobe = 0.3;
-        }),
-        ("camera_samples=1+sun_lobe=0.3", |s| {
-            s.render.integrator.camera_samples = 1;
-            s.render.integrator.sun_lobe = 0.3;
         }),
         ("russian_roulette=false", |s| {
             s.render.integrator.russian_roulette = false;

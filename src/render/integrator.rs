@@ -30,12 +30,15 @@
 //! Absorption never terminates a path; it only weights it. Russian roulette
 //! ends paths without bias.
 //!
-//! **Alternatives kept as options** (not faster at equal time on the
+//! **Scattering directions** mix the phase function about the path's
+//! direction with the phase function about the sun's (`sun_lobe`, 0.3 by
+//! default; see [`Integrator::sample_scatter_direction`]).
+//!
+//! **Alternative kept as an option** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`): `sunlight_samples` estimates
 //! every segment like the camera ray's, building the density per segment
 //! ([`super::sunlight`]; some 100× less variance for single scattering at
-//! twilight, but ~15× the cost per path); and `sun_lobe` mixes the phase
-//! function about the sun into the scattering directions.
+//! twilight, but ~15× the cost per path).
 //!
 //! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
 //! Every random decision (real vs. null, phase-function component and angle)
@@ -83,7 +86,7 @@ pub struct IntegratorOptions {
     /// delta tracking with a next-event estimate at every tentative collision.
     pub sunlight_samples: u32,
     /// Share of scattering directions drawn from the phase function about
-    /// the sun's direction instead of the path's (0–1; default 0).
+    /// the sun's direction instead of the path's (0–1; default 0.3).
     pub sun_lobe: f64,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
@@ -102,7 +105,7 @@ impl Default for IntegratorOptions {
             camera_samples: 1,
             camera_branches: 4,
             sunlight_samples: 0,
-            sun_lobe: 0.0,
+            sun_lobe: 0.3,
             russian_roulette: true,
             max_scattering_order: None,
         }
