@@ -167,6 +167,17 @@ impl SceneError {
     }
 }
 
+/// A count within `lo..=hi`, or an error naming `parameter` and the range.
+fn check_count(parameter: &str, value: usize, lo: usize, hi: usize) -> Result<(), SceneError> {
+    if (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            parameter,
+            format!("{value} is outside the valid range {lo} to {hi}"),
+        ))
+    }
+}
 fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
     if value.is_finite() && (lo..=hi).contains(&value) {
         Ok(())
@@ -287,45 +298,17 @@ impl Scene {
             check_range("exposure (EV)", ev, -50.0, 50.0)?;
         }
         let i = &r.integrator;
-        if !(1..=crate::render::LANES).contains(&i.wavelengths_per_path) {
-            return Err(SceneError::new(
-                "wavelengths per path",
-                format!(
-                    "{} is outside the valid range 1 to {}",
-                    i.wavelengths_per_path,
-                    crate::render::LANES
-                ),
-            ));
-        }
-        let most = crate::render::integrator::MAX_SUNLIGHT_SAMPLES;
-        if i.sunlight_samples as usize > most {
-            return Err(SceneError::new(
-                "sunlight samples",
-                format!(
-                    "{} is outside the valid range 0 to {most}",
-                    i.sunlight_samples
-                ),
-            ));
-        }
-        if i.camera_samples as usize > most {
-            return Err(SceneError::new(
-                "camera samples",
-                format!(
-                    "{} is outside the valid range 0 to {most}",
-                    i.camera_samples
-                ),
-            ));
-        }
+        let samples = crate::render::integrator::MAX_SUNLIGHT_SAMPLES;
         let branches = crate::render::integrator::MAX_BRANCHES;
-        if !(1..=branches).contains(&(i.camera_branches as usize)) {
-            return Err(SceneError::new(
-                "camera branches",
-                format!(
-                    "{} is outside the valid range 1 to {branches}",
-                    i.camera_branches
-                ),
-            ));
-        }
+        check_count(
+            "wavelengths per path",
+            i.wavelengths_per_path,
+            1,
+            crate::render::LANES,
+        )?;
+        check_count("sunlight samples", i.sunlight_samples as usize, 0, samples)?;
+        check_count("camera samples", i.camera_samples as usize, 0, samples)?;
+        check_count("camera branches", i.camera_branches as usize, 1, branches)?;
         check_range("sun lobe", i.sun_lobe, 0.0, 1.0)?;
         Ok(())
     }

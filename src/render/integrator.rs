@@ -374,7 +374,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<(DVec3, DVec3, Lanes)> {
+    ) -> Option<Vertex> {
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
         let Some(span) = self.medium.span(origin, dir) else {
@@ -541,13 +541,19 @@ impl<'a> Integrator<'a> {
         let through: Lanes = std::array::from_fn(|j| beta[j] * tr_end[j]);
         if span.hits_ground {
             let normal = (origin + dir * span.t_exit).normalize();
-            let bounce = self.ground_vertex(normal, depth, &through, lanes, radiance, rng);
-            if let (Some((x, _, b)), true) = (bounce, ground_goes_on) {
-                let weight = b.map(|v| v * share / (1.0 - p_medium));
-                for (slot, _) in next.iter_mut().zip(&from_medium).filter(|(_, &f)| !f) {
+            self.ground_direct(normal, depth, &through, lanes, radiance, rng);
+            if ground_goes_on {
+                // Each ground branch bounces on its own (see `ground_vertex`).
+                let x = ground_point(self.medium, normal);
+                let albedo = self.medium.ground_albedo;
+                let weight = through.map(|v| v * albedo * share / (1.0 - p_medium));
+                for (slot, _) in next[..branches]
+                    .iter_mut()
+                    .zip(&from_medium)
+                    .filter(|(_, &f)| !f)
+                {
                     *slot = Some((x, cosine_sample_hemisphere(normal, rng), weight));
                 }
-                next[branches..].fill(None);
             }
         } else if depth == 0 {
             self.add_sun_disc(dir, &through, lanes, radiance);
@@ -576,10 +582,35 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<(DVec3, DVec3, Lanes)> {
+    ) -> Option<Vertex> {
+        self.ground_direct(normal, depth, beta, lanes, radiance, rng);
+        let max_order = self.options.max_scattering_order.unwrap_or(u32::MAX);
+        let albedo = self.medium.ground_albedo;
+        if depth + 1 >= max_order || albedo <= 0.0 {
+            return None;
+        }
+        // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
+        Some((
+            ground_point(self.medium, normal),
+            cosine_sample_hemisphere(normal, rng),
+            beta.map(|b| b * albedo),
+        ))
+    }
+
+    /// The sun's direct light reflected at a ground vertex with normal
+    /// `normal`, reached after `depth` scatterings with weight `beta`.
+    fn ground_direct(
+        &self,
+        normal: DVec3,
+        depth: u32,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) {
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
-        let x = normal * (self.medium.planet_radius_m + SURFACE_OFFSET_M);
+        let x = ground_point(self.medium, normal);
         let albedo = self.medium.ground_albedo;
         if opts.next_event_estimation && depth < max_order {
             let to_sun = self.sample_sun_direction(rng);
@@ -591,15 +622,6 @@ impl<'a> Integrator<'a> {
                 }
             }
         }
-        if depth + 1 >= max_order || albedo <= 0.0 {
-            return None;
-        }
-        // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
-        Some((
-            x,
-            cosine_sample_hemisphere(normal, rng),
-            beta.map(|b| b * albedo),
-        ))
     }
 
     /// A scattering direction and its density (per sr): with probability
@@ -817,6 +839,11 @@ pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
         DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
         DVec3::new(b, sign + n.y * n.y * a, -n.y),
     )
+}
+
+/// The ground vertex under unit `normal`, just above the surface.
+fn ground_point(medium: &Medium, normal: DVec3) -> DVec3 {
+    normal * (medium.planet_radius_m + SURFACE_OFFSET_M)
 }
 
 /// Cosine-weighted direction about `normal` (Malley's method).

@@ -573,6 +573,38 @@ mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
 
+    /// E[f(t)/p(t)] over 200 000 midpoint-stratified samples of `sample`
+    /// (distance and density for a uniform variate), and ∫ f dt by a fine
+    /// midpoint rule, for f the scattering coefficient at 550 nm along the
+    /// ray; checks every sample lies in the span with a positive density.
+    fn importance_identity(
+        medium: &Medium,
+        origin: DVec3,
+        dir: DVec3,
+        span: super::super::medium::Span,
+        sample: impl Fn(f64) -> (f64, f64),
+    ) -> (f64, f64) {
+        let lanes = SpectralLanes::new([450.0, 550.0, 650.0, 750.0], 4, medium, false);
+        let f = |t: f64| {
+            medium
+                .coefficients((origin + dir * t).length(), &lanes)
+                .scattering(1)
+        };
+        let n = 200_000;
+        let mut estimate = 0.0;
+        for i in 0..n {
+            let (t, p) = sample((f64::from(i) + 0.5) / f64::from(n));
+            assert!(t >= span.t_enter && t <= span.t_exit && p > 0.0);
+            estimate += f(t) / p / f64::from(n);
+        }
+        let steps = 200_000;
+        let h = (span.t_exit - span.t_enter) / f64::from(steps);
+        let reference: f64 = (0..steps)
+            .map(|i| f(span.t_enter + (f64::from(i) + 0.5) * h) * h)
+            .sum();
+        (estimate, reference)
+    }
+
     #[test]
     fn vertical_column_matches_the_optical_depth_integral() {
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
@@ -623,23 +655,9 @@ mod tests {
         // scattering coefficient at 550 nm (which the density roughly follows,
         // so f/p stays bounded): the slant scattering optical depth, against
         // a fine midpoint rule.
-        let f = |t: f64| {
-            medium
-                .coefficients((origin + dir * t).length(), &lanes)
-                .scattering(1)
-        };
-        let n = 200_000;
-        let mut estimate = 0.0;
-        for i in 0..n {
-            let (t, p) = d.sample(Component::Mixture, (f64::from(i) + 0.5) / f64::from(n));
-            assert!(t >= span.t_enter && t <= span.t_exit && p > 0.0);
-            estimate += f(t) / p / f64::from(n);
-        }
-        let steps = 200_000;
-        let h = (span.t_exit - span.t_enter) / f64::from(steps);
-        let reference: f64 = (0..steps)
-            .map(|i| f(span.t_enter + (f64::from(i) + 0.5) * h) * h)
-            .sum();
+        let (estimate, reference) = importance_identity(&medium, origin, dir, span, |u| {
+            d.sample(Component::Mixture, u)
+        });
         let ratio = estimate / reference;
         assert!((ratio - 1.0).abs() < 1e-3, "{estimate} vs {reference}");
     }
@@ -668,7 +686,6 @@ mod tests {
         // horizon and down, and from orbit through the limb and at the Earth.
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
-        let lanes = SpectralLanes::new([450.0, 550.0, 650.0, 750.0], 4, &medium, false);
         let sun = DVec3::new(0.0, 0.99, 0.1).normalize();
         for (altitude_m, dir) in [
             (2.0, DVec3::new(0.3, 0.95, 0.02)),
@@ -681,24 +698,11 @@ mod tests {
             let cache = CameraDensities::new(&medium, origin, sun);
             let span = medium.span(origin, dir).unwrap();
             let d = cache.density(&medium, dir, span);
-            let f = |t: f64| {
-                medium
-                    .coefficients((origin + dir * t).length(), &lanes)
-                    .scattering(1)
-            };
-            let n = 200_000;
-            let mut estimate = 0.0;
-            for i in 0..n {
-                let (t, p) = d.sample(Component::Mixture, (f64::from(i) + 0.5) / f64::from(n));
-                assert!(t >= span.t_enter && t <= span.t_exit && p > 0.0);
+            let (estimate, reference) = importance_identity(&medium, origin, dir, span, |u| {
+                let (t, p) = d.sample(Component::Mixture, u);
                 assert!((p / d.density_at(Component::Mixture, t) - 1.0).abs() < 1e-9);
-                estimate += f(t) / p / f64::from(n);
-            }
-            let steps = 200_000;
-            let h = (span.t_exit - span.t_enter) / f64::from(steps);
-            let reference: f64 = (0..steps)
-                .map(|i| f(span.t_enter + (f64::from(i) + 0.5) * h) * h)
-                .sum();
+                (t, p)
+            });
             let ratio = estimate / reference;
             assert!(
                 (ratio - 1.0).abs() < 2e-3,
