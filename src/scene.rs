@@ -307,9 +307,11 @@ impl Scene {
             crate::render::LANES,
         )?;
         check_count("sunlight samples", i.sunlight_samples as usize, 0, samples)?;
+        check_count("shadow samples", i.shadow_samples as usize, 0, samples)?;
         check_count("camera samples", i.camera_samples as usize, 0, samples)?;
         check_count("camera branches", i.camera_branches as usize, 1, branches)?;
         check_range("sun lobe", i.sun_lobe, 0.0, 1.0)?;
+        check_range("sky guide", i.sky_guide, 0.0, 1.0)?;
         Ok(())
     }
 }
@@ -348,7 +350,9 @@ mod tests {
             ("camera_samples = 9", "camera samples", "0 to 8"),
             ("camera_branches = 0", "camera branches", "1 to 8"),
             ("sunlight_samples = 9", "sunlight samples", "0 to 8"),
+            ("shadow_samples = 9", "shadow samples", "0 to 8"),
             ("sun_lobe = 1.5", "sun lobe", "0 to 1"),
+            ("sky_guide = -0.1", "sky guide", "0 to 1"),
         ] {
             let e = Scene::from_toml(&format!("[render.integrator]\n{toml}")).unwrap_err();
             assert_eq!(e.parameter, parameter);

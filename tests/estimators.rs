@@ -3,6 +3,7 @@
 use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::sun;
+use skyrender::render::guide::SkyGuide;
 use skyrender::render::sunlight::CameraDensities;
 use skyrender::render::{
     direction_from_az_el, Integrator, IntegratorOptions, Medium, SpectralLanes,
@@ -463,6 +464,79 @@ fn camera_ray_densities_are_unbiased() {
                     all[j],
                     reference[j]
                 );
+            }
+        }
+    }
+}
+
+#[test]
+fn sky_guide_is_unbiased() {
+    // The guide (directions from the table of once-scattered light at
+    // shadowed points, segments estimated through its cached densities) only
+    // shapes the sampling: second-order light, its main target, and all
+    // orders must match plain delta tracking — at twilight (most vertices in
+    // the shadow), by day (sky and ground), and from orbit.
+    let atmosphere = Atmosphere::new(AtmosphereParams::default());
+    let medium = Medium::new(&atmosphere);
+    let lanes = unit_sun_lanes(&medium, [440.0, 520.0, 600.0, 680.0]);
+    let radius = atmosphere.params.planet_radius_m;
+    let cases = [
+        // (observer altitude m, sun az/el, view az/el)
+        (2.0, (270.0, -4.0), (90.0, 8.0)),
+        (2.0, (270.0, -4.0), (250.0, 60.0)),
+        (500.0, (180.0, 30.0), (200.0, -10.0)),
+        (400e3, (60.0, 10.0), (90.0, -18.8)),
+    ];
+    for (altitude_m, (sun_az, sun_el), (az, el)) in cases {
+        let origin = DVec3::new(0.0, 0.0, radius + altitude_m);
+        let sun_dir = direction_from_az_el(sun_az, sun_el);
+        let view = direction_from_az_el(az, el);
+        let camera = CameraDensities::new(&medium, origin, sun_dir);
+        let guide = SkyGuide::new(&medium, sun_dir);
+        let run = |options: IntegratorOptions, paths: u32| {
+            let integrator = Integrator::new(&medium, &options, sun_dir)
+                .with_camera_densities(&camera)
+                .with_sky_guide(&guide);
+            estimate(paths, |rng| integrator.radiance(origin, view, &lanes, rng))
+        };
+        for order in [Some(2), None] {
+            let (reference, reference_se) = run(
+                IntegratorOptions {
+                    camera_samples: 0,
+                    max_scattering_order: order,
+                    ..IntegratorOptions::default()
+                },
+                40_000,
+            );
+            let variants = [
+                IntegratorOptions {
+                    sky_guide: 0.5,
+                    shadow_samples: 1,
+                    max_scattering_order: order,
+                    ..IntegratorOptions::default()
+                },
+                IntegratorOptions {
+                    sky_guide: 0.25,
+                    sunlight_samples: 2,
+                    max_scattering_order: order,
+                    ..IntegratorOptions::default()
+                },
+            ];
+            for options in variants {
+                let (guided, guided_se) = run(options.clone(), 10_000);
+                for j in 0..LANES {
+                    let combined = reference_se[j].hypot(guided_se[j]);
+                    assert!(
+                        (guided[j] - reference[j]).abs() < 4.0 * combined,
+                        "{altitude_m} m, view ({az}, {el}), order {order:?}, guide {}, \
+                         shadow {}, sunlight {}, lane {j}: {} vs {} ± {combined}",
+                        options.sky_guide,
+                        options.shadow_samples,
+                        options.sunlight_samples,
+                        guided[j],
+                        reference[j]
+                    );
+                }
             }
         }
     }

@@ -34,11 +34,22 @@
 //! direction with the phase function about the sun's (`sun_lobe`, 0.3 by
 //! default; see [`Integrator::sample_scatter_direction`]).
 //!
-//! **Alternative kept as an option** (not faster at equal time on the
-//! benchmark scenes; see `BENCHMARKS.md`): `sunlight_samples` estimates
-//! every segment like the camera ray's, building the density per segment
-//! ([`super::sunlight`]; some 100× less variance for single scattering at
-//! twilight, but ~15× the cost per path).
+//! **Alternatives kept as options** (not faster at equal time on the
+//! benchmark scenes; see `BENCHMARKS.md`):
+//! * `sunlight_samples` estimates every segment like the camera ray's, from
+//!   the [`SkyGuide`]'s cached densities of rays from points of the same
+//!   altitude and solar zenith (without a guide, from a density built per
+//!   segment, [`super::sunlight`]), the path going on from its first real
+//!   scattering;
+//! * `shadow_samples` does so only on segments that start in the planet's
+//!   shadow;
+//! * `sky_guide` draws scattering directions in the shadow from the table of
+//!   incoming once-scattered light ([`super::guide`]).
+//!
+//! At twilight these cut the variance of second-order light per path ~5×,
+//! but the heavier tails of higher orders (paths that wander into sunlit air
+//! after several scatterings) stay, and the segment estimate's transmittance
+//! pass over whole grazing rays costs ~2.5× a delta-tracked segment.
 //!
 //! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
 //! Every random decision (real vs. null, phase-function component and angle)
@@ -51,9 +62,10 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
+use super::guide::SkyGuide;
 use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
-use super::sunlight::{CameraDensities, CameraRayDensity, Component, InScatterDistribution};
+use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDistribution};
 use crate::physics::{rayleigh, sun};
 use crate::rng::Rng;
 
@@ -88,6 +100,22 @@ pub struct IntegratorOptions {
     /// Share of scattering directions drawn from the phase function about
     /// the sun's direction instead of the path's (0–1; default 0.3).
     pub sun_lobe: f64,
+    /// Share of scattering directions drawn, at points in the planet's
+    /// shadow, from the table of incoming once-scattered light there
+    /// ([`SkyGuide`]) instead of the phase functions (0–1; default 0: at
+    /// twilight it cuts the variance of second-order light per path some 5×
+    /// but not the heavier tails of higher orders, and costs more than it
+    /// saves, `BENCHMARKS.md`).
+    pub sky_guide: f64,
+    /// Next-event points on each path segment that starts in the planet's
+    /// shadow, drawn from the expected sunlight along it as tabulated by the
+    /// [`SkyGuide`] (the path goes on from its first real scattering), 0–8.
+    /// 0 (the default) = delta tracking there too. At twilight most vertices
+    /// lie in the shadow and the light they see comes from a thin sunlit
+    /// stretch that chance collisions rarely hit; the estimate finds it, but
+    /// its transmittance pass over the whole (often grazing) ray costs ~2.5×
+    /// a delta-tracked segment, more than the variance it saves.
+    pub shadow_samples: u32,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -106,6 +134,8 @@ impl Default for IntegratorOptions {
             camera_branches: 4,
             sunlight_samples: 0,
             sun_lobe: 0.3,
+            sky_guide: 0.0,
+            shadow_samples: 0,
             russian_roulette: true,
             max_scattering_order: None,
         }
@@ -143,6 +173,7 @@ pub struct Integrator<'a> {
     sun_frame: (DVec3, DVec3),
     bounds: Bounds,
     camera: Option<&'a CameraDensities>,
+    guide: Option<&'a SkyGuide>,
 }
 
 /// A density of in-scattering distances along one path segment.
@@ -164,12 +195,12 @@ impl SegmentDensity for InScatterDistribution {
     }
 }
 
-impl SegmentDensity for CameraRayDensity<'_> {
+impl SegmentDensity for CachedRayDensity<'_> {
     fn sample(&self, component: Component, u: f64) -> (f64, f64) {
-        CameraRayDensity::sample(self, component, u)
+        CachedRayDensity::sample(self, component, u)
     }
     fn shares(&self, ground_albedo: f64) -> (f64, f64) {
-        CameraRayDensity::shares(self, ground_albedo)
+        CachedRayDensity::shares(self, ground_albedo)
     }
 }
 
@@ -188,7 +219,17 @@ impl<'a> Integrator<'a> {
                 Bounds::Global
             },
             camera: None,
+            guide: None,
         }
+    }
+
+    /// Uses `guide` for scattering directions (see
+    /// [`IntegratorOptions::sky_guide`]) and for the distance densities of
+    /// [`Self::trace_sunlit`]'s segments.
+    #[must_use]
+    pub fn with_sky_guide(mut self, guide: &'a SkyGuide) -> Self {
+        self.guide = Some(guide);
+        self
     }
 
     /// Uses `camera` for rays that start at its observer (see
@@ -375,6 +416,9 @@ impl<'a> Integrator<'a> {
         radiance: &mut Lanes,
         rng: &mut Rng,
     ) -> Option<Vertex> {
+        if let Some(guide) = self.guide {
+            return self.guided_segment(guide, origin, dir, depth, beta, lanes, radiance, rng);
+        }
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
         let Some(span) = self.medium.span(origin, dir) else {
@@ -383,6 +427,16 @@ impl<'a> Integrator<'a> {
             }
             return None;
         };
+        let segment = Segment {
+            origin,
+            dir,
+            span,
+            depth,
+        };
+        let n = (opts.sunlight_samples as usize).min(MAX_SUNLIGHT_SAMPLES);
+        if depth >= max_order {
+            return self.estimate_segment(&segment, beta, None, (0, 1), lanes, radiance, rng)[0];
+        }
         let mu_sun = dir.dot(self.sun_direction);
         let phase_rayleigh: Lanes =
             std::array::from_fn(|j| rayleigh::phase(mu_sun, lanes.rayleigh_gamma[j]));
@@ -390,32 +444,18 @@ impl<'a> Integrator<'a> {
             .medium
             .aerosol_phase
             .eval(mu_sun, self.medium.aerosol_g);
-        let distribution = if depth < max_order {
-            InScatterDistribution::new(
-                self.medium,
-                Some(self.medium.sun_columns()),
-                lanes,
-                origin,
-                dir,
-                span,
-                self.sun_direction,
-                &phase_rayleigh,
-                phase_aerosol,
-            )
-        } else {
-            None
-        };
-        let n = if distribution.is_some() {
-            (opts.sunlight_samples as usize).min(MAX_SUNLIGHT_SAMPLES)
-        } else {
-            0
-        };
-        let segment = Segment {
+        let distribution = InScatterDistribution::new(
+            self.medium,
+            Some(self.medium.sun_columns()),
+            lanes,
             origin,
             dir,
             span,
-            depth,
-        };
+            self.sun_direction,
+            &phase_rayleigh,
+            phase_aerosol,
+        );
+        let n = if distribution.is_some() { n } else { 0 };
         let distribution = distribution.as_ref().map(|d| d as &dyn SegmentDensity);
         self.estimate_segment(&segment, beta, distribution, (n, 1), lanes, radiance, rng)[0]
     }
@@ -508,7 +548,7 @@ impl<'a> Integrator<'a> {
             rng,
         );
         let mut next = [None; MAX_BRANCHES];
-        let share = 1.0 / branches as f64;
+        let share = 1.0 / branches.max(1) as f64;
         for (&(t, tr_view), &(_, density, branch)) in points.iter().zip(&samples[..m]) {
             if density <= 0.0 {
                 continue;
@@ -516,7 +556,7 @@ impl<'a> Integrator<'a> {
             let x = origin + dir * t;
             let c = self.medium.coefficients(x.length(), lanes);
             if let Some(b) = branch {
-                let (new_dir, pdf) = self.sample_scatter_direction(dir, &c, lanes, rng);
+                let (new_dir, pdf) = self.sample_scatter_direction(x, dir, &c, lanes, rng);
                 let mu = dir.dot(new_dir);
                 let new_beta = std::array::from_fn(|j| {
                     share * beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
@@ -559,6 +599,113 @@ impl<'a> Integrator<'a> {
             self.add_sun_disc(dir, &through, lanes, radiance);
         }
         next
+    }
+
+    /// One path segment from `origin` along `dir` after `depth` scatterings
+    /// with weight `beta`: next-event points from the guide's cached density
+    /// of the ray ([`super::guide::GuideAt::density`]), the path going on
+    /// from its first real scattering ([`Self::track_continuation`]).
+    #[allow(clippy::too_many_arguments)]
+    fn guided_segment(
+        &self,
+        guide: &SkyGuide,
+        origin: DVec3,
+        dir: DVec3,
+        depth: u32,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) -> Option<Vertex> {
+        let Some(span) = self.medium.span(origin, dir) else {
+            if depth == 0 {
+                self.add_sun_disc(dir, beta, lanes, radiance);
+            }
+            return None;
+        };
+        let segment = Segment {
+            origin,
+            dir,
+            span,
+            depth,
+        };
+        let at = guide.at(self.medium, origin);
+        let density = at.density(self.medium, dir, span);
+        let n = (self
+            .options
+            .sunlight_samples
+            .max(self.options.shadow_samples) as usize)
+            .min(MAX_SUNLIGHT_SAMPLES);
+        self.estimate_segment(&segment, beta, Some(&density), (n, 0), lanes, radiance, rng);
+        self.track_continuation(&segment, beta, lanes, rng)
+    }
+
+    /// Where a path goes on from `segment`, whose light a segment estimate
+    /// already counted: its first real scattering by delta tracking (so the
+    /// weight changes by about the single-scattering albedo, whatever the
+    /// ray), or else the ground's bounce; `None` if the path ends.
+    fn track_continuation(
+        &self,
+        segment: &Segment,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<Vertex> {
+        let &Segment {
+            origin,
+            dir,
+            span,
+            depth,
+        } = segment;
+        let max_order = self.options.max_scattering_order.unwrap_or(u32::MAX);
+        if depth + 1 >= max_order {
+            return None;
+        }
+        let mut beta = *beta;
+        let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
+        while let Some(collision) = tracker.next(rng) {
+            let x = origin + dir * collision.t;
+            let c = self.medium.coefficients(x.length(), lanes);
+            let majorant = collision.majorant;
+            let p_scatter = Self::scatter_probability(&c, lanes, majorant);
+            if rng.uniform() < p_scatter {
+                let (new_dir, pdf) = self.sample_scatter_direction(x, dir, &c, lanes, rng);
+                let mu = dir.dot(new_dir);
+                for (j, b) in beta.iter_mut().enumerate() {
+                    *b *= self.scattering_phase(&c, lanes, j, mu) / (majorant * p_scatter * pdf);
+                }
+                return Some((x, new_dir, beta));
+            }
+            for (j, b) in beta.iter_mut().enumerate() {
+                *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
+            }
+        }
+        let albedo = self.medium.ground_albedo;
+        if !span.hits_ground || albedo <= 0.0 {
+            return None;
+        }
+        // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
+        let normal = (origin + dir * span.t_exit).normalize();
+        Some((
+            ground_point(self.medium, normal),
+            cosine_sample_hemisphere(normal, rng),
+            beta.map(|b| b * albedo),
+        ))
+    }
+
+    /// Probability of a real scattering at a tentative collision with
+    /// coefficients `c` under `majorant`: the lane average of σ_s/(σ̄ − σ_a)
+    /// (absorption only weights paths).
+    fn scatter_probability(
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        majorant: f64,
+    ) -> f64 {
+        let p = (0..lanes.active)
+            .map(|j| c.scattering(j) / (majorant - c.absorption[j]).max(1e-300))
+            .sum::<f64>()
+            / lanes.active as f64;
+        p.clamp(0.0, 1.0)
     }
 
     /// The sun's disc seen along `dir` through transmittance `beta`.
@@ -634,24 +781,40 @@ impl<'a> Integrator<'a> {
     /// function of the point itself stands in for the unknown ones along ω.
     fn sample_scatter_direction(
         &self,
+        x: DVec3,
         dir: DVec3,
         c: &super::medium::Coefficients,
         lanes: &SpectralLanes,
         rng: &mut Rng,
     ) -> (DVec3, f64) {
-        let alpha = self.options.sun_lobe;
-        let new_dir = if rng.uniform() < alpha {
-            self.sample_phase_direction(self.sun_direction, c, lanes, rng)
+        let guide = self
+            .guide
+            .filter(|g| self.options.sky_guide > 0.0 && g.shadowed(x))
+            .map(|g| g.at(self.medium, x))
+            .filter(super::guide::GuideAt::guides);
+        let g = if guide.is_some() {
+            self.options.sky_guide
         } else {
-            self.sample_phase_direction(dir, c, lanes, rng)
+            0.0
+        };
+        let alpha = self.options.sun_lobe;
+        let new_dir = match &guide {
+            Some(guide) if rng.uniform() < g => guide.sample(rng),
+            _ if rng.uniform() < alpha => {
+                self.sample_phase_direction(self.sun_direction, c, lanes, rng)
+            }
+            _ => self.sample_phase_direction(dir, c, lanes, rng),
         };
         let phase = self.phase_mixture_pdf(c, lanes, dir.dot(new_dir));
-        let pdf = if alpha > 0.0 {
+        let mut pdf = if alpha > 0.0 {
             let lobe = self.phase_mixture_pdf(c, lanes, self.sun_direction.dot(new_dir));
             (1.0 - alpha) * phase + alpha * lobe
         } else {
             phase
         };
+        if let Some(guide) = &guide {
+            pdf = (1.0 - g) * pdf + g * guide.pdf(new_dir);
+        }
         (new_dir, pdf)
     }
 
@@ -680,7 +843,6 @@ impl<'a> Integrator<'a> {
         rng: &mut Rng,
     ) {
         let active = lanes.active;
-        let inv_active = 1.0 / active as f64;
         let opts = self.options;
         let mut beta = beta;
         let mut origin = origin;
@@ -690,7 +852,23 @@ impl<'a> Integrator<'a> {
 
         loop {
             let mut scattered = false;
-            if let Some(span) = self.medium.span(origin, dir) {
+            let shadowed = self
+                .guide
+                .filter(|g| opts.shadow_samples > 0 && depth > 0 && g.shadowed(origin));
+            if let (Some(guide), true) = (shadowed, opts.next_event_estimation) {
+                // A segment from the planet's shadow: its sunlit stretch is
+                // found by the guide's density, not by chance collisions.
+                match self.guided_segment(guide, origin, dir, depth, &beta, lanes, radiance, rng) {
+                    Some((x, new_dir, new_beta)) => {
+                        origin = x;
+                        dir = new_dir;
+                        beta = new_beta;
+                        depth += 1;
+                        scattered = true;
+                    }
+                    None => break,
+                }
+            } else if let Some(span) = self.medium.span(origin, dir) {
                 let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
                 while let Some(collision) = tracker.next(rng) {
                     let x = origin + dir * collision.t;
@@ -717,13 +895,9 @@ impl<'a> Integrator<'a> {
                         continue;
                     }
                     // Real scattering vs. null collision, sampled from the lane average.
-                    let p_scatter = (0..active)
-                        .map(|j| c.scattering(j) / (majorant - c.absorption[j]).max(1e-300))
-                        .sum::<f64>()
-                        * inv_active;
-                    let p_scatter = p_scatter.clamp(0.0, 1.0);
+                    let p_scatter = Self::scatter_probability(&c, lanes, majorant);
                     if rng.uniform() < p_scatter {
-                        let (new_dir, pdf) = self.sample_scatter_direction(dir, &c, lanes, rng);
+                        let (new_dir, pdf) = self.sample_scatter_direction(x, dir, &c, lanes, rng);
                         let mu = dir.dot(new_dir);
                         for (j, b) in beta.iter_mut().enumerate() {
                             *b *= self.scattering_phase(&c, lanes, j, mu)

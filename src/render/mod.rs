@@ -6,7 +6,9 @@
 //! image does not depend on the number of threads.
 
 pub mod camera;
+pub mod directions;
 pub mod film;
+pub mod guide;
 pub mod integrator;
 pub mod medium;
 pub mod service;
@@ -46,6 +48,9 @@ pub struct Renderer {
     /// Expected-sunlight densities of camera rays, built per view direction
     /// on first use.
     camera_densities: CameraDensities,
+    /// Incoming once-scattered light by direction at scattering points,
+    /// built per (altitude, solar zenith) cell on first use.
+    sky_guide: guide::SkyGuide,
     /// The scene's integrator options with plain delta-tracked camera rays,
     /// for the first pass (see [`Self::integrator`]).
     draft_options: IntegratorOptions,
@@ -85,8 +90,12 @@ impl Renderer {
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
         Ok(Self {
             camera_densities: CameraDensities::new(&medium, observer_m, sun_direction),
+            sky_guide: guide::SkyGuide::new(&medium, sun_direction),
             draft_options: IntegratorOptions {
                 camera_samples: 0,
+                sky_guide: 0.0,
+                sunlight_samples: 0,
+                shadow_samples: 0,
                 ..scene.render.integrator.clone()
             },
             observer_m,
@@ -125,6 +134,7 @@ impl Renderer {
         };
         Integrator::new(&self.medium, options, self.sun_direction)
             .with_camera_densities(&self.camera_densities)
+            .with_sky_guide(&self.sky_guide)
     }
 
     /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)

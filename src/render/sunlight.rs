@@ -25,6 +25,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
+use super::directions::{horizon_cosine, Grid, ViewFrame};
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
 
 /// Altitude nodes of the column table (square-root spacing: dense low down).
@@ -99,11 +100,6 @@ impl SunColumns {
     }
 }
 
-/// Cosine of the zenith angle of the geometric horizon at radius `r_m`.
-fn horizon_cosine(planet_radius_m: f64, r_m: f64) -> f64 {
-    -(1.0 - (planet_radius_m / r_m).powi(2)).max(0.0).sqrt()
-}
-
 /// Integer node below `x` and the fraction past it, for linear interpolation.
 fn split(x: f64, nodes: usize) -> (usize, f64) {
     let i = (x as usize).min(nodes - 2);
@@ -154,8 +150,10 @@ pub struct InScatterDistribution {
     cdf: [f64; MAX_SEGMENTS + 1],
     sky_cdf: [f64; MAX_SEGMENTS + 1],
     segments: usize,
-    /// Approximate lane-averaged ∫ σ_s T dt and T(t_end).
+    /// Approximate lane-averaged ∫ σ_s T dt, T(t_end), and the
+    /// once-scattered sunlight per unit irradiance ∫ σ_s p T T_sun dt, sr⁻¹.
     scattered: f64,
+    sunlit: f64,
     transmitted: f64,
 }
 
@@ -219,10 +217,8 @@ impl InScatterDistribution {
                     let view = view_depth[j] + half;
                     view_depth[j] += 2.0 * half;
                     skylit[n][j] = c.scattering(j) * (-view).exp() * (b - a);
-                    if let Some([air, o3, aer]) = columns {
-                        let sun_depth = lanes.rayleigh_m2[j] * air
-                            + lanes.ozone_reference_m2(j) * o3
-                            + lanes.aerosol_extinction_factor(j) * aer;
+                    if let Some(columns) = columns {
+                        let sun_depth = sun_optical_depth(lanes, j, columns);
                         sunlit[n][j] = (c.rayleigh[j] * phase_rayleigh[j]
                             + c.aerosol_scattering[j] * phase_aerosol)
                             * (-(view + sun_depth)).exp()
@@ -287,6 +283,7 @@ impl InScatterDistribution {
             sky_cdf,
             segments: n,
             scattered: sky_total[..active].iter().sum::<f64>() / active as f64,
+            sunlit: sun_total[..active].iter().sum::<f64>() / active as f64,
             transmitted: view_depth[..active].iter().map(|d| (-d).exp()).sum::<f64>()
                 / active as f64,
         })
@@ -297,6 +294,17 @@ impl InScatterDistribution {
     /// `ground_albedo` at the segment's end (≈ transmittance × albedo).
     pub fn shares(&self, ground_albedo: f64) -> (f64, f64) {
         (self.scattered, self.transmitted * ground_albedo)
+    }
+
+    /// Approximate once-scattered sunlight along the ray per unit solar
+    /// irradiance (lane average), sr⁻¹.
+    pub fn sunlit(&self) -> f64 {
+        self.sunlit
+    }
+
+    /// Approximate transmittance over the whole ray (lane average).
+    pub fn transmitted(&self) -> f64 {
+        self.transmitted
     }
 
     /// Where the density starts along its ray, m.
@@ -361,77 +369,48 @@ pub enum Component {
     Skylight,
 }
 
-/// Zenith cells of [`CameraDensities`] (square-root spacing away from the
-/// horizon on both sides: fine where the ray geometry changes fastest).
-const CAMERA_ZENITH_CELLS: usize = 64;
-/// Azimuth cells over 0–180° from the sun's azimuth (the scene is mirror
-/// symmetric about the sun's vertical plane).
-const CAMERA_AZIMUTH_CELLS: usize = 16;
-/// Share of the cached density in a camera ray's mixture; the rest is uniform
+/// View-direction cells of [`CameraDensities`].
+const CAMERA_GRID: Grid = Grid {
+    zenith: 64,
+    azimuth: 16,
+};
+/// Share of the cached density in a ray's mixture; the rest is uniform
 /// over the ray's span (defensive: positive even where the cached density
 /// underflowed).
 const CACHED_SHARE: f64 = 0.97;
 /// Wavelengths of the cached densities' lanes, nm: spread over the
 /// colour-matching functions' support, so one density serves every path's
 /// hero-rotated wavelengths.
-const CAMERA_WAVELENGTHS_NM: [f64; LANES] = [440.0, 510.0, 580.0, 650.0];
+const CACHE_WAVELENGTHS_NM: [f64; LANES] = [440.0, 510.0, 580.0, 650.0];
 
 /// [`InScatterDistribution`]s of camera rays, cached by view direction.
 ///
 /// Every camera ray of a render starts at the observer, so its expected
 /// sunlight depends only on its direction: on the view zenith angle and the
-/// azimuth from the sun (the atmosphere is spherically symmetric, the sun
-/// fixes a mirror plane). Each cell's density is built on first use, from the
-/// cell's central ray, and serves every ray through the cell, mapped affinely
-/// from the central ray's span onto the ray's own (entry to entry, exit to
-/// exit: the dense air at a ground hit or at a grazing ray's perigee lands
-/// where it is on the ray) and mixed with a uniform density over the span
-/// ([`CameraRayDensity`]). No cell straddles the horizon, so the rays of one
-/// cell all hit the ground or all miss it. Building is deterministic, so
+/// azimuth from the sun (see [`super::directions`]). Each cell's density is
+/// built on first use, from the cell's central ray, and serves every ray
+/// through the cell ([`CachedRayDensity`]). Building is deterministic, so
 /// images do not depend on which thread builds a cell.
 pub struct CameraDensities {
     origin_m: DVec3,
-    sun_direction: DVec3,
-    up: DVec3,
-    /// Horizontal unit vectors: toward the sun's azimuth, and 90° from it.
-    toward_sun: DVec3,
-    across_sun: DVec3,
-    /// Cosine of the view zenith angle of the planet's horizon.
-    mu_horizon: f64,
-    /// Largest view-zenith cosine whose ray meets the atmosphere (1 inside
-    /// it; the atmosphere's limb for an observer above it).
-    mu_top: f64,
-    lanes: SpectralLanes,
-    cells: Vec<OnceLock<Option<Box<InScatterDistribution>>>>,
+    frame: ViewFrame,
+    builder: DensityBuilder,
+    cells: DensitySlots,
 }
 
 impl CameraDensities {
     /// An empty cache for rays from `origin_m` with the sun along `sun_direction`.
     pub fn new(medium: &Medium, origin_m: DVec3, sun_direction: DVec3) -> Self {
-        let up = origin_m.normalize();
-        let horizontal = sun_direction - up * sun_direction.dot(up);
-        let toward_sun = if horizontal.length() > 1e-9 {
-            horizontal.normalize()
-        } else {
-            super::integrator::orthonormal_basis(up).0
-        };
-        let r = origin_m.length();
         Self {
             origin_m,
-            sun_direction,
-            up,
-            toward_sun,
-            across_sun: up.cross(toward_sun),
-            mu_horizon: horizon_cosine(medium.planet_radius_m, r),
-            mu_top: if r > medium.top_radius_m {
-                horizon_cosine(medium.top_radius_m, r)
-            } else {
-                1.0
-            },
-            lanes: SpectralLanes::new(CAMERA_WAVELENGTHS_NM, LANES, medium, false),
-            cells: (0..CAMERA_ZENITH_CELLS * CAMERA_AZIMUTH_CELLS)
-                .map(|_| OnceLock::new())
-                .collect(),
+            frame: ViewFrame::new(
+                medium.planet_radius_m,
+                medium.top_radius_m,
+                origin_m,
+                sun_direction,
+            ),
+            builder: DensityBuilder::new(medium, sun_direction),
+            cells: DensitySlots::new(CAMERA_GRID.cells()),
         }
     }
 
@@ -440,44 +419,46 @@ impl CameraDensities {
         self.origin_m
     }
 
-    /// Cell of the view direction `dir`, or `None` above the atmosphere's limb.
-    fn cell_index(&self, dir: DVec3) -> Option<usize> {
-        let mu = dir.dot(self.up).clamp(-1.0, 1.0);
-        let s = if mu >= self.mu_horizon {
-            if mu > self.mu_top {
-                return None;
-            }
-            0.5 + 0.5 * ((mu - self.mu_horizon) / (self.mu_top - self.mu_horizon)).sqrt()
-        } else {
-            0.5 - 0.5 * ((self.mu_horizon - mu) / (1.0 + self.mu_horizon)).sqrt()
-        };
-        let i = ((s * CAMERA_ZENITH_CELLS as f64) as usize).min(CAMERA_ZENITH_CELLS - 1);
-        let x = dir.dot(self.toward_sun);
-        let y = dir.dot(self.across_sun).abs();
-        let phi = y.atan2(x);
-        let k = ((phi / std::f64::consts::PI * CAMERA_AZIMUTH_CELLS as f64) as usize)
-            .min(CAMERA_AZIMUTH_CELLS - 1);
-        Some(i * CAMERA_AZIMUTH_CELLS + k)
+    /// The density for the camera ray along `dir` over its `span`.
+    pub fn density<'a>(
+        &'a self,
+        medium: &Medium,
+        dir: DVec3,
+        span: super::medium::Span,
+    ) -> CachedRayDensity<'a> {
+        let cell = self.frame.cell_index(CAMERA_GRID, dir).and_then(|i| {
+            self.cells.get(i, || {
+                let central = self.frame.cell_direction(CAMERA_GRID, i);
+                self.builder.build(medium, self.origin_m, central)
+            })
+        });
+        CachedRayDensity::new(cell, span)
+    }
+}
+
+/// Builds [`InScatterDistribution`]s of whole rays for one sun direction,
+/// with fixed representative lanes ([`CACHE_WAVELENGTHS_NM`]).
+pub struct DensityBuilder {
+    sun_direction: DVec3,
+    lanes: SpectralLanes,
+}
+
+impl DensityBuilder {
+    pub fn new(medium: &Medium, sun_direction: DVec3) -> Self {
+        Self {
+            sun_direction,
+            lanes: SpectralLanes::new(CACHE_WAVELENGTHS_NM, LANES, medium, false),
+        }
     }
 
-    /// The central direction of cell `index`.
-    fn cell_direction(&self, index: usize) -> DVec3 {
-        let (i, k) = (index / CAMERA_AZIMUTH_CELLS, index % CAMERA_AZIMUTH_CELLS);
-        let s = (i as f64 + 0.5) / CAMERA_ZENITH_CELLS as f64;
-        let mu = if s >= 0.5 {
-            self.mu_horizon + (2.0 * s - 1.0).powi(2) * (self.mu_top - self.mu_horizon)
-        } else {
-            self.mu_horizon - (1.0 - 2.0 * s).powi(2) * (1.0 + self.mu_horizon)
-        };
-        let phi = (k as f64 + 0.5) / CAMERA_AZIMUTH_CELLS as f64 * std::f64::consts::PI;
-        let sin = (1.0 - mu * mu).max(0.0).sqrt();
-        (self.toward_sun * (sin * phi.cos()) + self.across_sun * (sin * phi.sin()) + self.up * mu)
-            .normalize()
-    }
-
-    fn build(&self, medium: &Medium, index: usize) -> Option<Box<InScatterDistribution>> {
-        let dir = self.cell_direction(index);
-        let span = medium.span(self.origin_m, dir)?;
+    /// The density of the ray `origin_m + t·dir` over its whole span.
+    pub fn build(
+        &self,
+        medium: &Medium,
+        origin_m: DVec3,
+        dir: DVec3,
+    ) -> Option<InScatterDistribution> {
+        let span = medium.span(origin_m, dir)?;
         let mu_sun = dir.dot(self.sun_direction);
         let phase_rayleigh: Lanes = std::array::from_fn(|j| {
             crate::physics::rayleigh::phase(mu_sun, self.lanes.rayleigh_gamma[j])
@@ -487,45 +468,66 @@ impl CameraDensities {
             medium,
             Some(medium.sun_columns()),
             &self.lanes,
-            self.origin_m,
+            origin_m,
             dir,
             span,
             self.sun_direction,
             &phase_rayleigh,
             phase_aerosol,
         )
-        .map(Box::new)
     }
 
-    /// The density for the camera ray along `dir` over its `span`.
-    pub fn density<'a>(
-        &'a self,
-        medium: &Medium,
-        dir: DVec3,
-        span: super::medium::Span,
-    ) -> CameraRayDensity<'a> {
-        let cell = self.cell_index(dir).and_then(|i| {
-            self.cells[i]
-                .get_or_init(|| self.build(medium, i))
-                .as_deref()
-        });
-        let length = span.t_exit - span.t_enter;
-        let cell = cell.filter(|c| c.length() > 0.0 && length > 0.0);
-        CameraRayDensity {
-            share: if cell.is_some() { CACHED_SHARE } else { 0.0 },
-            // Cell distance = cell entry + (t − t_enter) · scale.
-            scale: cell.map_or(1.0, |c| c.length() / length),
-            cell,
-            t_enter: span.t_enter,
-            length,
-        }
+    /// Approximate lane-averaged transmittance from `x` to the sun (0 where
+    /// the planet hides the sun's centre).
+    pub fn sun_transmittance(&self, medium: &Medium, x: DVec3) -> f64 {
+        medium
+            .sun_columns()
+            .at(x, self.sun_direction)
+            .map_or(0.0, |columns| {
+                (0..LANES)
+                    .map(|j| (-sun_optical_depth(&self.lanes, j, columns)).exp())
+                    .sum::<f64>()
+                    / LANES as f64
+            })
     }
 }
 
-/// Distances along one camera ray: the cached density of its cell, mapped
-/// affinely onto the ray's span, mixed with a uniform density over the span
-/// (the defensive component).
-pub struct CameraRayDensity<'a> {
+/// Optical depth toward the sun of lane `j` through `[air, ozone, aerosol]`
+/// columns (see [`SunColumns`]).
+fn sun_optical_depth(lanes: &SpectralLanes, j: usize, [air, o3, aer]: [f64; 3]) -> f64 {
+    lanes.rayleigh_m2[j] * air
+        + lanes.ozone_reference_m2(j) * o3
+        + lanes.aerosol_extinction_factor(j) * aer
+}
+
+/// Densities built on first use, one per slot; building is deterministic, so
+/// results do not depend on which thread builds a slot.
+pub struct DensitySlots(Vec<OnceLock<Option<Box<InScatterDistribution>>>>);
+
+impl DensitySlots {
+    pub fn new(slots: usize) -> Self {
+        Self((0..slots).map(|_| OnceLock::new()).collect())
+    }
+
+    /// The density in `slot`, built by `build` on first use (which must
+    /// build the same density for every call with this slot).
+    pub fn get(
+        &self,
+        slot: usize,
+        build: impl FnOnce() -> Option<InScatterDistribution>,
+    ) -> Option<&InScatterDistribution> {
+        self.0[slot]
+            .get_or_init(|| build().map(Box::new))
+            .as_deref()
+    }
+}
+
+/// Distances along one ray: a cached density built from a representative
+/// ray, mapped affinely onto this ray's span (entry to entry, exit to exit:
+/// the dense air at a ground hit or at a grazing ray's perigee lands where it
+/// is on the ray) and mixed with a uniform density over the span (the
+/// defensive component).
+pub struct CachedRayDensity<'a> {
     cell: Option<&'a InScatterDistribution>,
     share: f64,
     /// Cell span length over this ray's span length.
@@ -534,7 +536,21 @@ pub struct CameraRayDensity<'a> {
     length: f64,
 }
 
-impl CameraRayDensity<'_> {
+impl<'a> CachedRayDensity<'a> {
+    /// `cell` (if any) mapped onto `span`.
+    pub fn new(cell: Option<&'a InScatterDistribution>, span: super::medium::Span) -> Self {
+        let length = span.t_exit - span.t_enter;
+        let cell = cell.filter(|c| c.length() > 0.0 && length > 0.0);
+        Self {
+            share: if cell.is_some() { CACHED_SHARE } else { 0.0 },
+            // Cell distance = cell entry + (t − t_enter) · scale.
+            scale: cell.map_or(1.0, |c| c.length() / length),
+            cell,
+            t_enter: span.t_enter,
+            length,
+        }
+    }
+
     /// A distance from the cell's `component` (mixed with the defensive
     /// uniform density) for the uniform variate `u` ∈ [0, 1) and its
     /// density, m⁻¹.
@@ -660,22 +676,6 @@ mod tests {
         });
         let ratio = estimate / reference;
         assert!((ratio - 1.0).abs() < 1e-3, "{estimate} vs {reference}");
-    }
-
-    #[test]
-    fn cells_contain_their_central_directions() {
-        let atmosphere = Atmosphere::new(AtmosphereParams::default());
-        let medium = Medium::new(&atmosphere);
-        for altitude_m in [2.0, 400e3] {
-            let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + altitude_m);
-            let sun = DVec3::new(0.3, -0.5, 0.2).normalize();
-            let cache = CameraDensities::new(&medium, origin, sun);
-            for index in 0..CAMERA_ZENITH_CELLS * CAMERA_AZIMUTH_CELLS {
-                assert_eq!(cache.cell_index(cache.cell_direction(index)), Some(index));
-            }
-            // Above the atmosphere's limb no ray meets the air.
-            assert_eq!(cache.cell_index(DVec3::Z).is_none(), altitude_m > 100e3);
-        }
     }
 
     #[test]

@@ -1,0 +1,207 @@
+//! Cells of directions about a point in the atmosphere, for tables indexed
+//! by direction.
+//!
+//! The atmosphere is spherically symmetric and the sun fixes a mirror plane,
+//! so anything seen from a point depends on the direction only through its
+//! zenith angle and its azimuth from the sun's vertical plane (0–180°). The
+//! zenith bands use square-root spacing away from the local horizon on both
+//! sides (fine where ray geometry changes fastest), so no cell straddles the
+//! horizon: the rays of one cell all hit the ground or all miss it.
+
+use glam::DVec3;
+
+/// A grid of direction cells: zenith bands × azimuth sectors (0–180°).
+#[derive(Clone, Copy, Debug)]
+pub struct Grid {
+    pub zenith: usize,
+    pub azimuth: usize,
+}
+
+impl Grid {
+    pub fn cells(self) -> usize {
+        self.zenith * self.azimuth
+    }
+}
+
+/// Band coordinate s ∈ [0, 1] of a cosine `mu` with the horizon at
+/// `mu_horizon` (s = ½) and the last direction of interest at `mu_top`
+/// (s = 1; below the horizon s runs to 0 at the nadir); `None` above `mu_top`.
+pub fn band_coordinate(mu: f64, mu_horizon: f64, mu_top: f64) -> Option<f64> {
+    if mu >= mu_horizon {
+        if mu > mu_top {
+            return None;
+        }
+        Some(0.5 + 0.5 * ((mu - mu_horizon) / (mu_top - mu_horizon).max(1e-300)).sqrt())
+    } else {
+        Some(0.5 - 0.5 * ((mu_horizon - mu) / (1.0 + mu_horizon).max(1e-300)).sqrt())
+    }
+}
+
+/// The cosine at band coordinate `s` (inverse of [`band_coordinate`]).
+pub fn band_cosine(s: f64, mu_horizon: f64, mu_top: f64) -> f64 {
+    if s >= 0.5 {
+        mu_horizon + (2.0 * s - 1.0).powi(2) * (mu_top - mu_horizon)
+    } else {
+        mu_horizon - (1.0 - 2.0 * s).powi(2) * (1.0 + mu_horizon)
+    }
+}
+
+/// Cosine of the zenith angle of the geometric horizon at radius `r_m`.
+pub fn horizon_cosine(planet_radius_m: f64, r_m: f64) -> f64 {
+    -(1.0 - (planet_radius_m / r_m).powi(2)).max(0.0).sqrt()
+}
+
+/// The local frame of a point: its zenith, the horizontal direction toward
+/// the sun's azimuth and the one across it, and the horizon's cosines.
+#[derive(Clone, Copy, Debug)]
+pub struct ViewFrame {
+    up: DVec3,
+    toward_sun: DVec3,
+    across_sun: DVec3,
+    /// Cosine of the view zenith angle of the planet's horizon.
+    mu_horizon: f64,
+    /// Largest view-zenith cosine whose ray meets the atmosphere (1 inside
+    /// it; the atmosphere's limb for a point above it).
+    mu_top: f64,
+}
+
+impl ViewFrame {
+    /// The frame at `origin_m` (m, planet-centred) for the sun along
+    /// `sun_direction`.
+    pub fn new(
+        planet_radius_m: f64,
+        top_radius_m: f64,
+        origin_m: DVec3,
+        sun_direction: DVec3,
+    ) -> Self {
+        let up = origin_m.normalize();
+        let horizontal = sun_direction - up * sun_direction.dot(up);
+        let toward_sun = if horizontal.length() > 1e-9 {
+            horizontal.normalize()
+        } else {
+            super::integrator::orthonormal_basis(up).0
+        };
+        let r = origin_m.length();
+        Self {
+            up,
+            toward_sun,
+            across_sun: up.cross(toward_sun),
+            mu_horizon: horizon_cosine(planet_radius_m, r),
+            mu_top: if r > top_radius_m {
+                horizon_cosine(top_radius_m, r)
+            } else {
+                1.0
+            },
+        }
+    }
+
+    /// Cell of `dir` in `grid`, or `None` above the atmosphere's limb.
+    pub fn cell_index(&self, grid: Grid, dir: DVec3) -> Option<usize> {
+        let mu = dir.dot(self.up).clamp(-1.0, 1.0);
+        let s = band_coordinate(mu, self.mu_horizon, self.mu_top)?;
+        let i = ((s * grid.zenith as f64) as usize).min(grid.zenith - 1);
+        let phi = dir
+            .dot(self.across_sun)
+            .abs()
+            .atan2(dir.dot(self.toward_sun));
+        let k = ((phi / std::f64::consts::PI * grid.azimuth as f64) as usize).min(grid.azimuth - 1);
+        Some(i * grid.azimuth + k)
+    }
+
+    /// Cosine bounds (low, high) and azimuth bounds (rad, 0–π) of a cell.
+    fn cell_bounds(&self, grid: Grid, index: usize) -> ((f64, f64), (f64, f64)) {
+        let (i, k) = (index / grid.azimuth, index % grid.azimuth);
+        let mu = |s: f64| band_cosine(s, self.mu_horizon, self.mu_top);
+        let (s0, s1) = (
+            i as f64 / grid.zenith as f64,
+            (i + 1) as f64 / grid.zenith as f64,
+        );
+        let sector = std::f64::consts::PI / grid.azimuth as f64;
+        (
+            (mu(s0), mu(s1)),
+            (k as f64 * sector, (k + 1) as f64 * sector),
+        )
+    }
+
+    /// The direction at zenith cosine `mu` and azimuth `phi` from the sun.
+    fn direction(&self, mu: f64, phi: f64) -> DVec3 {
+        let sin = (1.0 - mu * mu).max(0.0).sqrt();
+        (self.toward_sun * (sin * phi.cos()) + self.across_sun * (sin * phi.sin()) + self.up * mu)
+            .normalize()
+    }
+
+    /// The central direction of cell `index` (central in band coordinate).
+    pub fn cell_direction(&self, grid: Grid, index: usize) -> DVec3 {
+        let (i, k) = (index / grid.azimuth, index % grid.azimuth);
+        let s = (i as f64 + 0.5) / grid.zenith as f64;
+        let mu = band_cosine(s, self.mu_horizon, self.mu_top);
+        let phi = (k as f64 + 0.5) / grid.azimuth as f64 * std::f64::consts::PI;
+        self.direction(mu, phi)
+    }
+
+    /// Solid angle of cell `index`, sr (both mirror halves).
+    pub fn cell_solid_angle(&self, grid: Grid, index: usize) -> f64 {
+        let ((mu0, mu1), (phi0, phi1)) = self.cell_bounds(grid, index);
+        2.0 * (mu1 - mu0).abs() * (phi1 - phi0)
+    }
+
+    /// A direction uniform in solid angle over cell `index` (either mirror
+    /// half) for uniform variates `u`.
+    pub fn sample_cell(&self, grid: Grid, index: usize, u: [f64; 3]) -> DVec3 {
+        let ((mu0, mu1), (phi0, phi1)) = self.cell_bounds(grid, index);
+        let mu = mu0 + (mu1 - mu0) * u[0];
+        let phi = phi0 + (phi1 - phi0) * u[1];
+        self.direction(mu, if u[2] < 0.5 { phi } else { -phi })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cells_tile_the_sphere_and_round_trip() {
+        let planet = 6_371_000.0;
+        let grid = Grid {
+            zenith: 24,
+            azimuth: 8,
+        };
+        for (altitude_m, top_m) in [
+            (2.0, 100_000.0),
+            (40_000.0, 100_000.0),
+            (400_000.0, 100_000.0),
+        ] {
+            let origin = DVec3::new(0.3, -0.2, 0.9).normalize() * (planet + altitude_m);
+            let sun = DVec3::new(-0.5, 0.4, 0.1).normalize();
+            let frame = ViewFrame::new(planet, planet + top_m, origin, sun);
+            let total: f64 = (0..grid.cells())
+                .map(|i| frame.cell_solid_angle(grid, i))
+                .sum();
+            // Inside the atmosphere the cells tile the sphere; above it, the
+            // part of it that meets the atmosphere.
+            let expected = 2.0 * std::f64::consts::PI * (1.0 + frame.mu_top);
+            assert!(
+                (total - expected).abs() < 1e-9 * expected,
+                "{total} vs {expected}"
+            );
+            for index in 0..grid.cells() {
+                let centre = frame.cell_direction(grid, index);
+                assert_eq!(frame.cell_index(grid, centre), Some(index));
+                let sampled = frame.sample_cell(grid, index, [0.3, 0.7, 0.9]);
+                assert_eq!(frame.cell_index(grid, sampled), Some(index));
+            }
+        }
+    }
+
+    #[test]
+    fn band_coordinate_inverts_band_cosine() {
+        for &(mu_h, mu_top) in &[(-0.1, 1.0), (0.0, 1.0), (-0.3, -0.2)] {
+            for k in 0..=20 {
+                let s = f64::from(k) / 20.0;
+                let mu = band_cosine(s, mu_h, mu_top);
+                let back = band_coordinate(mu, mu_h, mu_top).unwrap();
+                assert!((back - s).abs() < 1e-9, "s {s} → mu {mu} → {back}");
+            }
+        }
+    }
+}

@@ -1,0 +1,325 @@
+//! Where the skylight at a point comes from: a table of the once-scattered
+//! light arriving there by direction, to guide scattering directions, and the
+//! distance densities of rays leaving such points.
+//!
+//! At twilight the multiply scattered light carries most of the radiance and
+//! nearly all the variance: a point in the Earth's shadow is lit by a small
+//! patch of sky — within some 30° of the hidden sun's azimuth, just above its
+//! horizon — which the phase function finds rarely (single paths then weigh
+//! 250–1000× the mean; `BENCHMARKS.md`). The light arriving at a point x from
+//! direction ω is mostly sunlight scattered once along ω,
+//!
+//! L₁(x, ω) = ∫ T(x, y) σ_s(y) p(ω·ω_sun) E_sun T_sun(y) dt, y = x + tω
+//! (plus, for rays that meet the ground, its direct reflection),
+//!
+//! and depends on x only through its altitude and the sun's zenith angle
+//! there (spherical symmetry), and on ω only through its cell of
+//! [`super::directions`]. [`SkyGuide`] tabulates it on first use per
+//! (altitude, solar zenith) cell, from one representative point, and the
+//! integrator draws directions from it (mixed with the phase function, one-
+//! sample MIS) and distances along the following segment from the same
+//! representative rays' [`InScatterDistribution`]s. Like every density of the
+//! renderer it only shapes the sampling: the estimator stays unbiased
+//! whatever the table's error.
+
+use std::sync::OnceLock;
+
+use glam::DVec3;
+
+use super::directions::{band_coordinate, band_cosine, horizon_cosine, Grid, ViewFrame};
+use super::medium::{Medium, Span};
+use super::sunlight::{CachedRayDensity, DensityBuilder, DensitySlots, InScatterDistribution};
+use crate::rng::Rng;
+
+/// Altitude cells (square-root spacing: dense low down, where the air is).
+const ALTITUDE_CELLS: usize = 12;
+/// Solar-zenith cells, in the band coordinate of [`super::directions`] about
+/// the local horizon (dense where the sun grazes and the shadow moves).
+const SUN_ZENITH_CELLS: usize = 32;
+/// Direction cells of one point's table.
+const DIRECTION_GRID: Grid = Grid {
+    zenith: 24,
+    azimuth: 8,
+};
+
+/// Incoming once-scattered light by direction, per (altitude, solar zenith)
+/// cell, built on first use.
+pub struct SkyGuide {
+    planet_radius_m: f64,
+    top_radius_m: f64,
+    sun_direction: DVec3,
+    /// A unit vector across the sun's direction, to place representative points.
+    across_sun: DVec3,
+    builder: DensityBuilder,
+    cells: Vec<OnceLock<PointCell>>,
+}
+
+/// The table of one (altitude, solar zenith) cell.
+struct PointCell {
+    /// The representative point, m, planet-centred, and its frame.
+    origin_m: DVec3,
+    frame: ViewFrame,
+    /// Cumulative probability over the direction cells (∝ L₁ × solid angle);
+    /// empty where no sunlight reaches any direction.
+    cdf: Vec<f64>,
+    /// Distance densities of the representative rays, built on first use.
+    rays: DensitySlots,
+}
+
+impl SkyGuide {
+    /// An empty guide for `medium` with the sun along `sun_direction`.
+    pub fn new(medium: &Medium, sun_direction: DVec3) -> Self {
+        Self {
+            planet_radius_m: medium.planet_radius_m,
+            top_radius_m: medium.top_radius_m,
+            sun_direction,
+            across_sun: super::integrator::orthonormal_basis(sun_direction).0,
+            builder: DensityBuilder::new(medium, sun_direction),
+            cells: (0..ALTITUDE_CELLS * SUN_ZENITH_CELLS)
+                .map(|_| OnceLock::new())
+                .collect(),
+        }
+    }
+
+    /// Whether the planet hides the sun's centre from `x` (m, planet-centred).
+    /// Only there does the table guide directions: at sunlit points the
+    /// phase function about the sun (the integrator's sun lobe) follows the
+    /// once-scattered light's sharp aureole better than the table's cells
+    /// can (`BENCHMARKS.md`: guiding everywhere loses 1.2–1.6× by day),
+    /// while in the shadow the light comes from the sunlit air above the
+    /// horizon, which no phase function about a fixed axis finds.
+    pub fn shadowed(&self, x: DVec3) -> bool {
+        let r = x.length();
+        x.dot(self.sun_direction) / r < horizon_cosine(self.planet_radius_m, r)
+    }
+
+    /// The guide at point `x` (m, planet-centred, inside the atmosphere).
+    pub fn at(&self, medium: &Medium, x: DVec3) -> GuideAt<'_> {
+        let r = x.length();
+        let top_m = self.top_radius_m - self.planet_radius_m;
+        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
+        let i = ((a * ALTITUDE_CELLS as f64) as usize).min(ALTITUDE_CELLS - 1);
+        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
+        let s =
+            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
+        let k = ((s * SUN_ZENITH_CELLS as f64) as usize).min(SUN_ZENITH_CELLS - 1);
+        let cell = self.cells[i * SUN_ZENITH_CELLS + k].get_or_init(|| self.build(medium, i, k));
+        GuideAt {
+            guide: self,
+            cell,
+            frame: ViewFrame::new(
+                self.planet_radius_m,
+                self.top_radius_m,
+                x,
+                self.sun_direction,
+            ),
+        }
+    }
+
+    /// The table of cell (altitude `i`, solar zenith `k`), from its central point.
+    fn build(&self, medium: &Medium, i: usize, k: usize) -> PointCell {
+        let top_m = self.top_radius_m - self.planet_radius_m;
+        let altitude_m = top_m * ((i as f64 + 0.5) / ALTITUDE_CELLS as f64).powi(2);
+        let r = self.planet_radius_m + altitude_m;
+        let s = (k as f64 + 0.5) / SUN_ZENITH_CELLS as f64;
+        let mu_sun = band_cosine(s, horizon_cosine(self.planet_radius_m, r), 1.0);
+        let origin_m = (self.sun_direction * mu_sun
+            + self.across_sun * (1.0 - mu_sun * mu_sun).max(0.0).sqrt())
+            * r;
+        let frame = ViewFrame::new(
+            self.planet_radius_m,
+            self.top_radius_m,
+            origin_m,
+            self.sun_direction,
+        );
+        let rays = DensitySlots::new(DIRECTION_GRID.cells());
+        let mut cdf = Vec::with_capacity(DIRECTION_GRID.cells() + 1);
+        cdf.push(0.0);
+        for d in 0..DIRECTION_GRID.cells() {
+            let dir = frame.cell_direction(DIRECTION_GRID, d);
+            let light = self.incoming_light(
+                medium,
+                origin_m,
+                dir,
+                rays.get(d, || self.builder.build(medium, origin_m, dir)),
+            );
+            let mass = light * frame.cell_solid_angle(DIRECTION_GRID, d);
+            cdf.push(cdf[d] + if mass.is_finite() { mass } else { 0.0 });
+        }
+        let total = cdf[DIRECTION_GRID.cells()];
+        if total > 0.0 {
+            for c in &mut cdf {
+                *c /= total;
+            }
+        } else {
+            cdf.clear();
+        }
+        PointCell {
+            origin_m,
+            frame,
+            cdf,
+            rays,
+        }
+    }
+
+    /// Approximate once-scattered light per unit irradiance arriving at
+    /// `origin_m` from `dir` (whose density is `ray`), sr⁻¹: the sky's, plus
+    /// the ground's direct reflection where the ray meets it.
+    fn incoming_light(
+        &self,
+        medium: &Medium,
+        origin_m: DVec3,
+        dir: DVec3,
+        ray: Option<&InScatterDistribution>,
+    ) -> f64 {
+        let Some(ray) = ray else {
+            return 0.0;
+        };
+        let mut light = ray.sunlit();
+        if let Some(span) = medium.span(origin_m, dir).filter(|s| s.hits_ground) {
+            let ground = origin_m + dir * span.t_exit;
+            let cos = ground.normalize().dot(self.sun_direction);
+            if cos > 0.0 {
+                light += ray.transmitted() * medium.ground_albedo / std::f64::consts::PI
+                    * cos
+                    * self.builder.sun_transmittance(medium, ground);
+            }
+        }
+        light
+    }
+}
+
+/// The guide at one point: its cell's table seen in the point's own frame.
+pub struct GuideAt<'a> {
+    guide: &'a SkyGuide,
+    cell: &'a PointCell,
+    frame: ViewFrame,
+}
+
+impl GuideAt<'_> {
+    /// Whether the table has any light to guide toward.
+    pub fn guides(&self) -> bool {
+        !self.cell.cdf.is_empty()
+    }
+
+    /// A direction ∝ the tabulated light (piecewise constant per cell,
+    /// uniform in solid angle within one); only where [`Self::guides`].
+    pub fn sample(&self, rng: &mut Rng) -> DVec3 {
+        let u = rng.uniform();
+        let cells = DIRECTION_GRID.cells();
+        let d = self.cell.cdf[1..]
+            .partition_point(|&c| c <= u)
+            .min(cells - 1);
+        self.frame.sample_cell(
+            DIRECTION_GRID,
+            d,
+            [rng.uniform(), rng.uniform(), rng.uniform()],
+        )
+    }
+
+    /// The density of [`Self::sample`] at `dir`, per sr.
+    pub fn pdf(&self, dir: DVec3) -> f64 {
+        let Some(d) = self.frame.cell_index(DIRECTION_GRID, dir) else {
+            return 0.0;
+        };
+        if self.cell.cdf.is_empty() {
+            return 0.0;
+        }
+        let p = self.cell.cdf[d + 1] - self.cell.cdf[d];
+        let omega = self.frame.cell_solid_angle(DIRECTION_GRID, d);
+        if omega > 0.0 {
+            p / omega
+        } else {
+            0.0
+        }
+    }
+
+    /// The distance density for the ray from this point along `dir` over
+    /// `span`: its direction cell's representative ray, mapped onto it.
+    pub fn density(&self, medium: &Medium, dir: DVec3, span: Span) -> CachedRayDensity<'_> {
+        let cell = self.cell;
+        let ray = self.frame.cell_index(DIRECTION_GRID, dir).and_then(|d| {
+            cell.rays.get(d, || {
+                let central = cell.frame.cell_direction(DIRECTION_GRID, d);
+                self.guide.builder.build(medium, cell.origin_m, central)
+            })
+        });
+        CachedRayDensity::new(ray, span)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atmosphere::{Atmosphere, AtmosphereParams};
+    use crate::render::direction_from_az_el;
+
+    /// ∫ f(ω) dω over the sphere by a midpoint rule in (cos θ, φ).
+    fn sphere_quadrature(f: impl Fn(DVec3) -> f64) -> f64 {
+        let (n_mu, n_phi) = (2000, 400);
+        let d_mu = 2.0 / f64::from(n_mu);
+        let d_phi = 2.0 * std::f64::consts::PI / f64::from(n_phi);
+        let mut sum = 0.0;
+        for i in 0..n_mu {
+            let mu = -1.0 + (f64::from(i) + 0.5) * d_mu;
+            let sin = (1.0 - mu * mu).sqrt();
+            for k in 0..n_phi {
+                let phi = (f64::from(k) + 0.5) * d_phi;
+                sum += f(DVec3::new(sin * phi.cos(), sin * phi.sin(), mu)) * d_mu * d_phi;
+            }
+        }
+        sum
+    }
+
+    #[test]
+    fn guided_directions_follow_their_density() {
+        // At a sunlit point by day, a shadowed one at twilight and one high
+        // up: the density integrates to one over the sphere, and each
+        // direction cell receives its share of samples (within 5 binomial
+        // standard deviations), at the density the sampler reports.
+        let atmosphere = Atmosphere::new(AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        let radius = medium.planet_radius_m;
+        for (sun, x) in [
+            (
+                direction_from_az_el(180.0, 30.0),
+                DVec3::new(0.1, 0.2, 1.0).normalize() * (radius + 800.0),
+            ),
+            (
+                direction_from_az_el(270.0, -4.0),
+                DVec3::new(0.0, 0.0, radius + 3_000.0),
+            ),
+            (
+                direction_from_az_el(60.0, 10.0),
+                DVec3::new(0.3, 0.0, 1.0).normalize() * (radius + 45_000.0),
+            ),
+        ] {
+            let guide = SkyGuide::new(&medium, sun);
+            let at = guide.at(&medium, x);
+            assert!(at.guides());
+            let total = sphere_quadrature(|w| at.pdf(w));
+            assert!((total - 1.0).abs() < 2e-3, "∫ p dω = {total}");
+            let cells = DIRECTION_GRID.cells();
+            let mut counts = vec![0u32; cells];
+            let n = 200_000;
+            let mut rng = Rng::new(3, 1);
+            for _ in 0..n {
+                let w = at.sample(&mut rng);
+                let d = at.frame.cell_index(DIRECTION_GRID, w).unwrap();
+                let p = at.cell.cdf[d + 1] - at.cell.cdf[d];
+                let density = p / at.frame.cell_solid_angle(DIRECTION_GRID, d);
+                assert!((at.pdf(w) / density - 1.0).abs() < 1e-12);
+                counts[d] += 1;
+            }
+            for (d, &count) in counts.iter().enumerate() {
+                let p = at.cell.cdf[d + 1] - at.cell.cdf[d];
+                let expected = p * f64::from(n);
+                let sigma = (expected * (1.0 - p)).sqrt();
+                assert!(
+                    (f64::from(count) - expected).abs() <= 5.0 * sigma + 1.0,
+                    "cell {d}: {count} samples, expected {expected:.1}"
+                );
+            }
+        }
+    }
+}
