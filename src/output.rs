@@ -25,7 +25,8 @@
 //! Display values are computed per pixel as
 //!
 //! ```text
-//! srgb8 = quantise(oetf(aces(rgb * 2^exposure_ev)))     (per channel)
+//! peak  = max(r, g, b)                                       (negative channels as 0)
+//! srgb8 = quantise(oetf(aces(peak * 2^exposure_ev) * rgb / peak))   (per channel)
 //! ```
 //!
 //! - **Exposure.** `exposure_ev` is a plain base-2 scale exponent with no reference constant:
@@ -36,10 +37,12 @@
 //!   of Reinhard et al., "Photographic Tone Reproduction for Digital Images", SIGGRAPH 2002.
 //! - **Curve.** The ACES filmic fit by K. Narkowicz, "ACES Filmic Tone Mapping Curve"
 //!   (<https://knarkowicz.wordpress.com/2016/01/06/aces-filmic-tone-mapping-curve/>):
-//!   `aces(x) = clamp(x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), 0, 1)`, applied to each
-//!   channel. It has a toe, maps middle grey 0.18 to about 0.27 and reaches white at x ≈ 7.2,
-//!   i.e. about 5.3 stops above middle grey. Applying it per channel desaturates very bright
-//!   colours towards white (e.g. the solar disc), like film.
+//!   `aces(x) = clamp(x (2.51 x + 0.03) / (x (2.43 x + 0.59) + 0.14), 0, 1)`. It has a toe,
+//!   maps middle grey 0.18 to about 0.27 and reaches white at x ≈ 7.2, i.e. about 5.3 stops
+//!   above middle grey. It is applied to the pixel's largest channel and the others keep their
+//!   ratios to it, so the curve compresses brightness but keeps hue and saturation: applied per
+//!   channel it would turn every bright colour toward white-yellow — a sunset's orange sun and
+//!   glow, whose linear Rec.709 ratios are about 1 : 0.3 : 0.02, would show pale yellow.
 //! - **Encoding.** The sRGB OETF of IEC 61966-2-1 (`12.92 v` below 0.0031308, otherwise
 //!   `1.055 v^(1/2.4) − 0.055`), then rounding to 8 bits.
 //! - Pixels with a NaN or infinite channel are shown black; negative channels are clipped to 0.
@@ -410,7 +413,14 @@ pub fn tonemap_pixel(rgb: [f32; 3], exposure_scale: f32) -> [u8; 3] {
     if !rgb.iter().all(|channel| channel.is_finite()) {
         return [0; 3];
     }
-    rgb.map(|channel| quantize_u8(srgb_oetf(aces_filmic(channel * exposure_scale))))
+    let rgb = rgb.map(|channel| channel.max(0.0));
+    let peak = rgb[0].max(rgb[1]).max(rgb[2]);
+    if peak <= 0.0 {
+        return [0; 3];
+    }
+    // The curve on the largest channel; the ratios (hue, saturation) stay.
+    let display_peak = aces_filmic(peak * exposure_scale);
+    rgb.map(|channel| quantize_u8(srgb_oetf(display_peak * (channel / peak))))
 }
 
 /// Narkowicz's ACES filmic fit, clamped to [0, 1]; NaN and negative inputs give 0.
@@ -480,6 +490,21 @@ mod tests {
         assert_eq!(previous, 1.0);
         // Middle grey lands at about 0.267.
         assert!((aces_filmic(0.18) - 0.266_9).abs() < 1e-3);
+    }
+
+    #[test]
+    fn tonemap_keeps_the_hue_of_bright_colours() {
+        // A sunset sun's linear ratios, far above white: the largest channel
+        // saturates, the others keep their ratios (orange, not yellow-white).
+        let [r, g, b] = tonemap_pixel([1.0, 0.33, 0.02], 1.0e4);
+        assert_eq!(r, 255);
+        assert_eq!(g, quantize_u8(srgb_oetf(0.33)));
+        assert_eq!(b, quantize_u8(srgb_oetf(0.02)));
+        // Grey stays grey at any exposure.
+        for scale in [0.01, 1.0, 100.0] {
+            let [r, g, b] = tonemap_pixel([0.5; 3], scale);
+            assert!(r == g && g == b);
+        }
     }
 
     #[test]
