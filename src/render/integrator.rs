@@ -666,18 +666,10 @@ impl<'a> Integrator<'a> {
         while let Some(collision) = tracker.next(rng) {
             let x = origin + dir * collision.t;
             let c = self.medium.coefficients(x.length(), lanes);
-            let majorant = collision.majorant;
-            let p_scatter = Self::scatter_probability(&c, lanes, majorant);
-            if rng.uniform() < p_scatter {
-                let (new_dir, pdf) = self.sample_scatter_direction(x, dir, &c, lanes, rng);
-                let mu = dir.dot(new_dir);
-                for (j, b) in beta.iter_mut().enumerate() {
-                    *b *= self.scattering_phase(&c, lanes, j, mu) / (majorant * p_scatter * pdf);
-                }
+            if let Some(new_dir) =
+                self.collide(x, dir, &c, collision.majorant, &mut beta, lanes, rng)
+            {
                 return Some((x, new_dir, beta));
-            }
-            for (j, b) in beta.iter_mut().enumerate() {
-                *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
             }
         }
         let albedo = self.medium.ground_albedo;
@@ -693,19 +685,40 @@ impl<'a> Integrator<'a> {
         ))
     }
 
-    /// Probability of a real scattering at a tentative collision with
-    /// coefficients `c` under `majorant`: the lane average of σ_s/(σ̄ − σ_a)
-    /// (absorption only weights paths).
-    fn scatter_probability(
+    /// A tentative collision at `x` (coefficients `c`, under `majorant`) on a
+    /// path along `dir` with weight `beta`: a real scattering, with the lane
+    /// average of σ_s/(σ̄ − σ_a) as its probability P_s (absorption only
+    /// weights paths), returns the new direction and weights `beta` by
+    /// σ_s p/(σ̄ P_s pdf); a null collision returns `None` and weights it by
+    /// (σ̄ − σ_t)/(σ̄ (1 − P_s)).
+    #[allow(clippy::too_many_arguments)]
+    fn collide(
+        &self,
+        x: DVec3,
+        dir: DVec3,
         c: &super::medium::Coefficients,
-        lanes: &SpectralLanes,
         majorant: f64,
-    ) -> f64 {
-        let p = (0..lanes.active)
+        beta: &mut Lanes,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<DVec3> {
+        let p_scatter = ((0..lanes.active)
             .map(|j| c.scattering(j) / (majorant - c.absorption[j]).max(1e-300))
             .sum::<f64>()
-            / lanes.active as f64;
-        p.clamp(0.0, 1.0)
+            / lanes.active as f64)
+            .clamp(0.0, 1.0);
+        if rng.uniform() < p_scatter {
+            let (new_dir, pdf) = self.sample_scatter_direction(x, dir, c, lanes, rng);
+            let mu = dir.dot(new_dir);
+            for (j, b) in beta.iter_mut().enumerate() {
+                *b *= self.scattering_phase(c, lanes, j, mu) / (majorant * p_scatter * pdf);
+            }
+            return Some(new_dir);
+        }
+        for (j, b) in beta.iter_mut().enumerate() {
+            *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
+        }
+        None
     }
 
     /// The sun's disc seen along `dir` through transmittance `beta`.
@@ -894,23 +907,13 @@ impl<'a> Integrator<'a> {
                         }
                         continue;
                     }
-                    // Real scattering vs. null collision, sampled from the lane average.
-                    let p_scatter = Self::scatter_probability(&c, lanes, majorant);
-                    if rng.uniform() < p_scatter {
-                        let (new_dir, pdf) = self.sample_scatter_direction(x, dir, &c, lanes, rng);
-                        let mu = dir.dot(new_dir);
-                        for (j, b) in beta.iter_mut().enumerate() {
-                            *b *= self.scattering_phase(&c, lanes, j, mu)
-                                / (majorant * p_scatter * pdf);
-                        }
+                    if let Some(new_dir) = self.collide(x, dir, &c, majorant, &mut beta, lanes, rng)
+                    {
                         origin = x;
                         dir = new_dir;
                         depth += 1;
                         scattered = true;
                         break;
-                    }
-                    for (j, b) in beta.iter_mut().enumerate() {
-                        *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
                     }
                 }
                 if !scattered && span.hits_ground {
