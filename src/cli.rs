@@ -254,23 +254,7 @@ pub enum CliError {
 /// Fail early, before rendering, if the output cannot be written.
 fn check_output_path(path: &Path) -> Result<(), CliError> {
     OutputFormat::from_path(path)?;
-    let dir = match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    };
-    tempfile::NamedTempFile::new_in(dir).map_err(|e| {
-        CliError::Other(format!(
-            "invalid output: cannot write '{}': {e}",
-            path.display()
-        ))
-    })?;
-    if path.is_dir() {
-        return Err(CliError::Other(format!(
-            "invalid output: '{}' is a directory",
-            path.display()
-        )));
-    }
-    Ok(())
+    crate::output::check_writable(path).map_err(|e| CliError::Other(format!("invalid output: {e}")))
 }
 
 /// The header metadata written into EXR files.

@@ -321,19 +321,10 @@ fn write_atomically(
         path: path.to_path_buf(),
         source,
     };
-    let directory = match path.parent() {
-        Some(parent) if !parent.as_os_str().is_empty() => parent,
-        _ => Path::new("."),
-    };
+    let directory = parent_dir(path);
     // Report a missing directory plainly, rather than via the temp file's name.
     std::fs::metadata(directory).map_err(io_error)?;
-
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".skyrender-").suffix(".tmp");
-    // Like `File::create`: 0o666 minus the umask (tempfile's default is 0o600).
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    let mut temp = builder.tempfile_in(directory).map_err(io_error)?;
+    let mut temp = temp_file_in(directory).map_err(io_error)?;
 
     {
         let mut writer = BufWriter::new(temp.as_file_mut());
@@ -347,6 +338,40 @@ fn write_atomically(
 
 /// Middle grey: the display value the log-average luminance is mapped to (Reinhard's key).
 const MIDDLE_GREY: f64 = 0.18;
+/// The directory a file at `path` goes into (`.` for a bare file name).
+pub fn parent_dir(path: &Path) -> &Path {
+    match path.parent() {
+        Some(parent) if !parent.as_os_str().is_empty() => parent,
+        _ => Path::new("."),
+    }
+}
+
+/// A hidden temporary file in `dir`, to be renamed over its target: like
+/// `File::create`, mode 0o666 minus the umask on Unix (tempfile's default
+/// is a private 0o600).
+pub fn temp_file_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
+    let mut builder = tempfile::Builder::new();
+    builder.prefix(".skyrender-").suffix(".tmp");
+    #[cfg(unix)]
+    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
+    builder.tempfile_in(dir)
+}
+
+/// Checks, before any work, that a file can be written atomically at
+/// `path`: it is not a directory and a temporary file can be created beside
+/// it. The error names the path and the reason.
+pub fn check_writable(path: &Path) -> Result<(), String> {
+    if path.is_dir() {
+        return Err(format!(
+            "cannot write '{}': it is a directory",
+            path.display()
+        ));
+    }
+    temp_file_in(parent_dir(path))
+        .map(drop)
+        .map_err(|e| format!("cannot write '{}': {e}", path.display()))
+}
+
 /// Fraction of the brightest valid pixels ignored by [`auto_exposure_ev`] (e.g. the sun).
 const AUTO_EXPOSURE_OUTLIER_FRACTION: f64 = 0.001;
 /// Luminances more than 16 stops below the median are raised to that level before averaging

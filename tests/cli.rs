@@ -146,6 +146,16 @@ fn bad_inputs_get_one_line_errors_and_no_file() {
         "output",
         Some(&unwritable),
     );
+    // A directory in the way of the output: named, and left as it was.
+    let in_the_way = dir.path().join("taken.exr");
+    std::fs::create_dir(&in_the_way).unwrap();
+    assert_rejected(
+        &["render", "--spp", "1", "-o", in_the_way.to_str().unwrap()],
+        "is a directory",
+        None,
+    );
+    assert!(in_the_way.is_dir());
+    std::fs::remove_dir(&in_the_way).unwrap();
     let bad_scene = dir.path().join("bad.toml");
     std::fs::write(&bad_scene, "[sun]\nelevation_deg = \"high\"\n").unwrap();
     assert_rejected(

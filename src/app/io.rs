@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use image::ImageEncoder as _;
 
 use super::state::{DisplaySettings, ToneCurve};
-use crate::output::{self, OutputFormat};
+use crate::output::{self, check_writable, parent_dir, temp_file_in, OutputFormat};
 use crate::render::service::Frame;
 use crate::scene::Scene;
 
@@ -34,40 +34,6 @@ pub fn check_export_path(path: &Path) -> Result<(), String> {
         Err(e) => return Err(e.to_string()),
     }
     check_writable(path)
-}
-
-/// `path` is not a directory and a file can be created beside it.
-fn check_writable(path: &Path) -> Result<(), String> {
-    if path.is_dir() {
-        return Err(format!(
-            "cannot write '{}': it is a directory",
-            path.display()
-        ));
-    }
-    let dir = parent_dir(path);
-    temp_file_in(dir)
-        .map(drop)
-        .map_err(|e| format!("cannot write '{}': {e}", path.display()))
-}
-
-/// A temporary file in `dir` that becomes an ordinary file when persisted
-/// (on Unix mode 0666 less the umask, not tempfile's private 0600).
-fn temp_file_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".skyrender-");
-    #[cfg(unix)]
-    {
-        use std::os::unix::fs::PermissionsExt as _;
-        builder.permissions(std::fs::Permissions::from_mode(0o666));
-    }
-    builder.tempfile_in(dir)
-}
-
-fn parent_dir(path: &Path) -> &Path {
-    match path.parent() {
-        Some(p) if !p.as_os_str().is_empty() => p,
-        _ => Path::new("."),
-    }
 }
 
 /// Render `scene` (already set to an equirectangular camera, the export size
