@@ -21,6 +21,13 @@
 //! representative rays' [`InScatterDistribution`]s. Like every density of the
 //! renderer it only shapes the sampling: the estimator stays unbiased
 //! whatever the table's error.
+//!
+//! Used through the options `sky_guide`, `shadow_samples` and
+//! `sunlight_samples` of [`super::IntegratorOptions`], all off by default:
+//! second-order light at twilight gets ~25× cheaper per path, but the heavier
+//! tails of higher orders stay and the segment estimates cost ~2.5× a
+//! delta-tracked path, so no option wins at equal time (`BENCHMARKS.md`,
+//! "The sky guide").
 
 use std::sync::OnceLock;
 
