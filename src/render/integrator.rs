@@ -416,23 +416,13 @@ impl<'a> Integrator<'a> {
         radiance: &mut Lanes,
         rng: &mut Rng,
     ) -> Option<Vertex> {
+        let segment = self.segment(origin, dir, depth, beta, lanes, radiance)?;
         if let Some(guide) = self.guide {
-            return self.guided_segment(guide, origin, dir, depth, beta, lanes, radiance, rng);
+            return self.guided_segment(guide, &segment, beta, lanes, radiance, rng);
         }
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
-        let Some(span) = self.medium.span(origin, dir) else {
-            if depth == 0 {
-                self.add_sun_disc(dir, beta, lanes, radiance);
-            }
-            return None;
-        };
-        let segment = Segment {
-            origin,
-            dir,
-            span,
-            depth,
-        };
+        let span = segment.span;
         let n = (opts.sunlight_samples as usize).min(MAX_SUNLIGHT_SAMPLES);
         if depth >= max_order {
             return self.estimate_segment(&segment, beta, None, (0, 1), lanes, radiance, rng)[0];
@@ -601,43 +591,54 @@ impl<'a> Integrator<'a> {
         next
     }
 
-    /// One path segment from `origin` along `dir` after `depth` scatterings
-    /// with weight `beta`: next-event points from the guide's cached density
-    /// of the ray ([`super::guide::GuideAt::density`]), the path going on
-    /// from its first real scattering ([`Self::track_continuation`]).
-    #[allow(clippy::too_many_arguments)]
-    fn guided_segment(
+    /// The segment from `origin` along `dir` after `depth` scatterings, or
+    /// `None` where the ray misses the atmosphere (a camera ray, reached with
+    /// weight `beta`, then sees the sun's disc if it looks at it).
+    fn segment(
         &self,
-        guide: &SkyGuide,
         origin: DVec3,
         dir: DVec3,
         depth: u32,
         beta: &Lanes,
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
-        rng: &mut Rng,
-    ) -> Option<Vertex> {
+    ) -> Option<Segment> {
         let Some(span) = self.medium.span(origin, dir) else {
             if depth == 0 {
                 self.add_sun_disc(dir, beta, lanes, radiance);
             }
             return None;
         };
-        let segment = Segment {
+        Some(Segment {
             origin,
             dir,
             span,
             depth,
-        };
-        let at = guide.at(self.medium, origin);
-        let density = at.density(self.medium, dir, span);
+        })
+    }
+
+    /// One path segment reached with weight `beta`: next-event points from
+    /// the guide's cached density of the ray
+    /// ([`super::guide::GuideAt::density`]), the path going on from its
+    /// first real scattering ([`Self::track_continuation`]).
+    fn guided_segment(
+        &self,
+        guide: &SkyGuide,
+        segment: &Segment,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) -> Option<Vertex> {
+        let at = guide.at(self.medium, segment.origin);
+        let density = at.density(self.medium, segment.dir, segment.span);
         let n = (self
             .options
             .sunlight_samples
             .max(self.options.shadow_samples) as usize)
             .min(MAX_SUNLIGHT_SAMPLES);
-        self.estimate_segment(&segment, beta, Some(&density), (n, 0), lanes, radiance, rng);
-        self.track_continuation(&segment, beta, lanes, rng)
+        self.estimate_segment(segment, beta, Some(&density), (n, 0), lanes, radiance, rng);
+        self.track_continuation(segment, beta, lanes, rng)
     }
 
     /// Where a path goes on from `segment`, whose light a segment estimate
@@ -871,7 +872,12 @@ impl<'a> Integrator<'a> {
             if let (Some(guide), true) = (shadowed, opts.next_event_estimation) {
                 // A segment from the planet's shadow: its sunlit stretch is
                 // found by the guide's density, not by chance collisions.
-                match self.guided_segment(guide, origin, dir, depth, &beta, lanes, radiance, rng) {
+                let next = self
+                    .segment(origin, dir, depth, &beta, lanes, radiance)
+                    .and_then(|segment| {
+                        self.guided_segment(guide, &segment, &beta, lanes, radiance, rng)
+                    });
+                match next {
                     Some((x, new_dir, new_beta)) => {
                         origin = x;
                         dir = new_dir;

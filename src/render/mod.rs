@@ -49,8 +49,10 @@ pub struct Renderer {
     /// on first use.
     camera_densities: CameraDensities,
     /// Incoming once-scattered light by direction at scattering points,
-    /// built per (altitude, solar zenith) cell on first use.
-    sky_guide: guide::SkyGuide,
+    /// built per (altitude, solar zenith) cell on first use; only for the
+    /// options that use it (`sky_guide`, `shadow_samples`,
+    /// `sunlight_samples`), so the default render does not set it up.
+    sky_guide: Option<guide::SkyGuide>,
     /// The scene's integrator options with plain delta-tracked camera rays,
     /// for the first pass (see [`Self::integrator`]).
     draft_options: IntegratorOptions,
@@ -90,7 +92,11 @@ impl Renderer {
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
         Ok(Self {
             camera_densities: CameraDensities::new(&medium, observer_m, sun_direction),
-            sky_guide: guide::SkyGuide::new(&medium, sun_direction),
+            sky_guide: {
+                let i = &scene.render.integrator;
+                (i.sky_guide > 0.0 || i.shadow_samples > 0 || i.sunlight_samples > 0)
+                    .then(|| guide::SkyGuide::new(&medium, sun_direction))
+            },
             draft_options: IntegratorOptions {
                 camera_samples: 0,
                 sky_guide: 0.0,
@@ -132,9 +138,12 @@ impl Renderer {
         } else {
             &self.scene.render.integrator
         };
-        Integrator::new(&self.medium, options, self.sun_direction)
-            .with_camera_densities(&self.camera_densities)
-            .with_sky_guide(&self.sky_guide)
+        let integrator = Integrator::new(&self.medium, options, self.sun_direction)
+            .with_camera_densities(&self.camera_densities);
+        match &self.sky_guide {
+            Some(guide) => integrator.with_sky_guide(guide),
+            None => integrator,
+        }
     }
 
     /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)
