@@ -32,6 +32,24 @@ fn estimate(
     (mean, se)
 }
 
+/// Asserts every lane of two estimates (mean, standard error) agrees within
+/// 4 combined standard errors; `what` names the comparison.
+fn assert_agree(
+    what: &str,
+    (a, a_se): ([f64; LANES], [f64; LANES]),
+    (b, b_se): ([f64; LANES], [f64; LANES]),
+) {
+    for j in 0..LANES {
+        let combined = a_se[j].hypot(b_se[j]);
+        assert!(
+            (a[j] - b[j]).abs() < 4.0 * combined,
+            "{what}, lane {j}: {} vs {} ± {combined}",
+            a[j],
+            b[j]
+        );
+    }
+}
+
 fn unit_sun_lanes(medium: &Medium, wavelengths: [f64; LANES]) -> SpectralLanes {
     SpectralLanes::new(wavelengths, LANES, medium, true)
 }
@@ -307,16 +325,7 @@ fn estimator_variants_agree_statistically() {
         ),
     ];
     for (name, options) in variants {
-        let (mean, se) = run(options);
-        for j in 0..LANES {
-            let combined = (se[j] * se[j] + reference_se[j] * reference_se[j]).sqrt();
-            assert!(
-                (mean[j] - reference[j]).abs() < 4.0 * combined,
-                "{name} lane {j}: {} vs {} ± {combined}",
-                mean[j],
-                reference[j]
-            );
-        }
+        assert_agree(name, run(options), (reference, reference_se));
     }
 }
 
@@ -369,16 +378,8 @@ fn sunlight_sampling_is_unbiased_in_twilight() {
         };
         let (a, a_se) = run(0, 0.0, 60_000);
         let (b, b_se) = run(2, 0.5, 20_000);
-        for j in 0..LANES {
-            let combined = a_se[j].hypot(b_se[j]);
-            assert!(
-                (a[j] - b[j]).abs() < 4.0 * combined,
-                "lane {j}: {} vs {} ± {combined}",
-                a[j],
-                b[j]
-            );
-            assert!(b[j] > 0.0);
-        }
+        assert_agree("sunlight sampling", (b, b_se), (a, a_se));
+        assert!(b.iter().all(|&v| v > 0.0));
     }
 }
 
@@ -455,16 +456,11 @@ fn camera_ray_densities_are_unbiased() {
         // plays on the weight relative to the branch's start).
         let (reference, reference_se) = run((0, 1), None, 40_000);
         for variant in [(1, 1), (2, 4)] {
-            let (all, all_se) = run(variant, None, 10_000);
-            for j in 0..LANES {
-                let combined = reference_se[j].hypot(all_se[j]);
-                assert!(
-                    (all[j] - reference[j]).abs() < 4.0 * combined,
-                    "{altitude_m} m, view ({az}, {el}), {variant:?}, lane {j}: {} vs {} ± {combined}",
-                    all[j],
-                    reference[j]
-                );
-            }
+            assert_agree(
+                &format!("{altitude_m} m, view ({az}, {el}), {variant:?}"),
+                run(variant, None, 10_000),
+                (reference, reference_se),
+            );
         }
     }
 }
@@ -523,20 +519,12 @@ fn sky_guide_is_unbiased() {
                 },
             ];
             for options in variants {
-                let (guided, guided_se) = run(options.clone(), 10_000);
-                for j in 0..LANES {
-                    let combined = reference_se[j].hypot(guided_se[j]);
-                    assert!(
-                        (guided[j] - reference[j]).abs() < 4.0 * combined,
-                        "{altitude_m} m, view ({az}, {el}), order {order:?}, guide {}, \
-                         shadow {}, sunlight {}, lane {j}: {} vs {} ± {combined}",
-                        options.sky_guide,
-                        options.shadow_samples,
-                        options.sunlight_samples,
-                        guided[j],
-                        reference[j]
-                    );
-                }
+                let what = format!(
+                    "{altitude_m} m, view ({az}, {el}), order {order:?}, guide {}, shadow {}, \
+                     sunlight {}",
+                    options.sky_guide, options.shadow_samples, options.sunlight_samples
+                );
+                assert_agree(&what, run(options, 10_000), (reference, reference_se));
             }
         }
     }
