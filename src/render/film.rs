@@ -1,6 +1,8 @@
-//! The film: per-pixel sums of XYZ samples, filled one pass (one sample per
-//! pixel) at a time and readable at any moment. Rows record how many passes
-//! they hold, so a pass interrupted half-way still reads back coherently.
+//! The film: per-pixel weighted sums of XYZ samples, filled one pass (one
+//! sample per pixel) at a time and readable at any moment. Rows record how
+//! many passes they hold and their total weight, so a pass interrupted
+//! half-way still reads back coherently. Each pass is an unbiased estimate
+//! and its weight is fixed in advance, so the weighted mean is unbiased too.
 
 use crate::output::RgbImage;
 use crate::spectrum::xyz_to_rec709;
@@ -9,9 +11,11 @@ use crate::spectrum::xyz_to_rec709;
 pub struct Film {
     pub width: u32,
     pub height: u32,
-    /// Sum of XYZ (cd m⁻² for Y) over the row's passes.
+    /// Weighted sum of XYZ (cd m⁻² for Y) over the row's passes.
     pub(crate) xyz_sum: Vec<[f32; 3]>,
     pub(crate) row_passes: Vec<u32>,
+    /// Sum of the weights of the row's passes.
+    pub(crate) row_weights: Vec<f64>,
     /// Samples discarded as non-finite or negative.
     pub discarded: u64,
 }
@@ -23,6 +27,7 @@ impl Film {
             height,
             xyz_sum: vec![[0.0; 3]; width as usize * height as usize],
             row_passes: vec![0; height as usize],
+            row_weights: vec![0.0; height as usize],
             discarded: 0,
         }
     }
@@ -32,11 +37,21 @@ impl Film {
         self.row_passes.iter().copied().min().unwrap_or(0)
     }
 
+    /// 1 / (total weight) of row `y`'s passes (1 before the first).
+    fn row_scale(&self, y: usize) -> f64 {
+        let w = self.row_weights[y];
+        if w > 0.0 {
+            1.0 / w
+        } else {
+            1.0
+        }
+    }
+
     /// Mean XYZ of one pixel.
     pub fn xyz(&self, x: u32, y: u32) -> [f64; 3] {
-        let n = self.row_passes[y as usize].max(1);
+        let scale = self.row_scale(y as usize);
         let s = self.xyz_sum[(y * self.width + x) as usize];
-        s.map(|v| f64::from(v) / f64::from(n))
+        s.map(|v| f64::from(v) * scale)
     }
 
     /// The current estimate as linear Rec.709 (Y in cd m⁻²).
@@ -44,7 +59,7 @@ impl Film {
         let w = self.width as usize;
         let mut pixels = Vec::with_capacity(self.xyz_sum.len());
         for (y, row) in self.xyz_sum.chunks(w).enumerate() {
-            let inv = 1.0 / f64::from(self.row_passes[y].max(1));
+            let inv = self.row_scale(y);
             pixels.extend(
                 row.iter()
                     .map(|s| xyz_to_rec709(s.map(|v| f64::from(v) * inv)).map(|c| c as f32)),
