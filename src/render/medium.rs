@@ -643,7 +643,50 @@ impl Medium {
         if span.hits_ground {
             return [0.0; LANES];
         }
+        if estimator == TransmittanceEstimator::ResidualRatioTracking && bounds == Bounds::Tight {
+            return self.chord_transmittance(origin, dir, span, lanes, rng);
+        }
         self.transmittance_along(origin, dir, span, lanes, estimator, bounds, &mut [], rng)
+    }
+
+    /// [`Self::transmittance_along`] without checkpoints, for residual ratio
+    /// tracking with tight bounds: the shadow rays' case, as one tight loop
+    /// (the same random numbers, the same estimate).
+    fn chord_transmittance(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        span: Span,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Lanes {
+        let mut walk = self.walk(origin, dir, span, Bounds::Tight);
+        let mut factors = [1.0; LANES];
+        let mut columns = [0.0; 3];
+        let mut budget = -rng.uniform_open0().ln();
+        while let Some(piece) = walk.next_piece(self) {
+            let chord = &self.shells[piece.shell].chord;
+            let (s0, s1) = (piece.t0 - walk.perigee_t, piece.t1 - walk.perigee_t);
+            let piece_columns = chord.columns(walk.perigee2, s0, s1);
+            let residual = lanes.shells[piece.shell].residual;
+            let mut t = piece.t0;
+            while residual > 0.0 && budget < residual * (piece.t1 - t) {
+                t += budget / residual;
+                budget = -rng.uniform_open0().ln();
+                let radius2 = (origin + dir * t).length_squared();
+                let c = self.coefficients(radius2.sqrt(), lanes);
+                let control = lanes.control(chord.at(radius2));
+                for (j, f) in factors.iter_mut().enumerate() {
+                    *f *= 1.0 - (c.extinction(j) - control[j]) / residual;
+                }
+            }
+            budget -= residual * (piece.t1 - t);
+            for k in 0..3 {
+                columns[k] += piece_columns[k];
+            }
+        }
+        let depth = lanes.control(columns);
+        std::array::from_fn(|j| factors[j] * (-depth[j]).exp())
     }
 
     /// Unbiased transmittance estimates from the start of `span` to each
