@@ -153,7 +153,7 @@ const ROULETTE_CAP_DEPTH: u32 = 64;
 /// on any loss), a ground bounce of albedo 0.3 killed 70 % of the paths and
 /// tripled the weight of the rest: per path relative std from orbit 0.65 vs
 /// 0.52 here, at midday 0.43 vs 0.36; bench at equal time, alternated runs:
-/// 0.86–0.94× the noise in every scene (BENCHMARKS.md).
+/// 0.86–0.95× the noise in every scene (BENCHMARKS.md).
 const ROULETTE_WEIGHT: f64 = 0.25;
 /// Most in-scattering points on one segment.
 pub const MAX_SUNLIGHT_SAMPLES: usize = 8;

@@ -131,8 +131,8 @@ impl Renderer {
     /// [`Self::integrator`]) has 5–20× the variance of a full pass (per-path
     /// relative std 1.8 vs 0.42 at midday's zenith, 2.6 vs 1.2 in the sunset
     /// glow); weights ∝ 1/variance minimise the mean's, and 1/8 lies within
-    /// that range. Left at 1, the draft added a third to the variance of a
-    /// 30-pass render (BENCHMARKS.md).
+    /// that range. Left at 1, the draft doubled the variance of the upper
+    /// sky in a 24-pass midday render (BENCHMARKS.md, session 6).
     fn pass_weight(pass: u32) -> f64 {
         if pass == 0 {
             0.125
