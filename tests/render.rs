@@ -125,3 +125,37 @@ fn twilight_is_dark_but_its_zenith_stays_blue() {
     );
     assert!(zenith[2] > zenith[0], "ozone-blue zenith: {zenith:?}");
 }
+
+#[test]
+fn twilight_casts_the_earths_shadow_and_skylight_fills_it() {
+    // Sun 4° below the western horizon: looking east at 2° elevation the
+    // line of sight stays in the planet's shadow up to ~66 km, so once
+    // scattered sunlight there is < 1 % of that at 20°, where the ray leaves
+    // the shadow near 20 km; with every order, skylight lights the shadowed
+    // air, so the low eastern sky keeps more than a third of the brightness
+    // at 20° (the Earth's shadow is a darker band, not a black one).
+    let probe = |max_order: Option<u32>, elevation_deg: f64, samples: u32| {
+        let mut scene = Scene::preset("twilight").unwrap();
+        scene.render.integrator.max_scattering_order = max_order;
+        let renderer = Renderer::new(&scene).unwrap();
+        let e = renderer.probe_radiance(90.0 - elevation_deg, 90.0, &[550.0], samples)[0];
+        (e.radiance, e.std_error)
+    };
+    let (single_low, _) = probe(Some(1), 2.0, 4000);
+    let (single_high, single_se) = probe(Some(1), 20.0, 4000);
+    assert!(
+        single_high > 10.0 * single_se,
+        "{single_high} ± {single_se}"
+    );
+    assert!(
+        single_low < 0.01 * single_high,
+        "single scattering: {single_low} at 2° vs {single_high} at 20°"
+    );
+    // Twilight paths are noisy (relative std ~3.5 per path): 100 000 each.
+    let (all_low, low_se) = probe(None, 2.0, 100_000);
+    let (all_high, high_se) = probe(None, 20.0, 100_000);
+    assert!(
+        all_low + 4.0 * low_se < all_high - 4.0 * high_se && all_low > all_high / 3.0,
+        "all orders: {all_low} ± {low_se} at 2° vs {all_high} ± {high_se} at 20°"
+    );
+}
