@@ -884,16 +884,10 @@ impl<'a> Integrator<'a> {
                     .and_then(|segment| {
                         self.guided_segment(guide, &segment, &beta, lanes, radiance, rng)
                     });
-                match next {
-                    Some((x, new_dir, new_beta)) => {
-                        origin = x;
-                        dir = new_dir;
-                        beta = new_beta;
-                        depth += 1;
-                        scattered = true;
-                    }
-                    None => break,
-                }
+                let Some(vertex) = next else { break };
+                (origin, dir, beta) = vertex;
+                depth += 1;
+                scattered = true;
             } else if let Some(span) = self.medium.span(origin, dir) {
                 let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
                 while let Some(collision) = tracker.next(rng) {
@@ -931,16 +925,11 @@ impl<'a> Integrator<'a> {
                 }
                 if !scattered && span.hits_ground {
                     let normal = (origin + dir * span.t_exit).normalize();
-                    match self.ground_vertex(normal, depth, &beta, lanes, radiance, rng) {
-                        Some((x, new_dir, new_beta)) => {
-                            origin = x;
-                            dir = new_dir;
-                            beta = new_beta;
-                            depth += 1;
-                            scattered = true;
-                        }
-                        None => break,
-                    }
+                    let next = self.ground_vertex(normal, depth, &beta, lanes, radiance, rng);
+                    let Some(vertex) = next else { break };
+                    (origin, dir, beta) = vertex;
+                    depth += 1;
+                    scattered = true;
                 }
             }
             if !scattered {

@@ -105,7 +105,7 @@ impl Chord {
     }
 }
 
-#[derive(Clone, Copy, Debug, Default)]
+#[derive(Clone, Copy, Debug)]
 struct Node {
     air_m3: f64,
     ozone_m3: f64,
