@@ -511,6 +511,10 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("tight_majorants=false", |s| {
             s.render.integrator.tight_majorants = false;
         }),
+        ("shadow_transmittance=chord-residual-ratio-tracking", |s| {
+            s.render.integrator.shadow_transmittance =
+                TransmittanceEstimator::ChordResidualRatioTracking;
+        }),
         ("shadow_transmittance=ratio-tracking", |s| {
             s.render.integrator.shadow_transmittance = TransmittanceEstimator::RatioTracking;
         }),

@@ -12,7 +12,9 @@
 //! shell's boundaries, linear in r² — along a ray r² = p² + s² (p the perigee
 //! distance, s the distance from it), so the control's integral is a
 //! polynomial — and the residual is bounded by how far the profiles bend away
-//! from their chords inside the shell.
+//! from their chords inside the shell. Shadow rays, which always run to the
+//! top of the atmosphere, take their control from a table of columns instead
+//! ([`super::columns`]): one look-up rather than a walk through the shells.
 //!
 //! Several wavelengths travel together on one path: [`SpectralLanes`] holds
 //! their per-molecule cross-sections, and every coefficient is a [`Lanes`]
@@ -20,6 +22,7 @@
 
 use glam::DVec3;
 
+use super::columns::ColumnTable;
 use crate::atmosphere::Atmosphere;
 use crate::physics::{aerosol, ozone, rayleigh, standard_atmosphere, sun};
 use crate::rng::Rng;
@@ -29,7 +32,8 @@ pub const LANES: usize = 4;
 /// One value per wavelength lane.
 pub type Lanes = [f64; LANES];
 
-const NODE_STEP_M: f64 = 50.0;
+/// Spacing of the cached profile nodes, m.
+pub(super) const NODE_STEP_M: f64 = 50.0;
 
 /// Shell boundaries (altitude, m): thin near the ground where the density
 /// changes fastest in absolute terms, coarse high up where the whole shell's
@@ -131,6 +135,12 @@ pub struct Medium {
     /// Column amounts toward the sun (a sampling aid; built on first use, so
     /// renders that do not sample sunlight do not pay for it).
     sun_columns: std::sync::OnceLock<super::sunlight::SunColumns>,
+    /// The shadow rays' control, built on first use (sequentially: a
+    /// parallel build inside a render pass's workers could deadlock on this
+    /// lock).
+    column_table: std::sync::OnceLock<ColumnTable>,
+    /// The profiles at the nodes in the table's order, to build it.
+    profile_nodes: Vec<[f64; 3]>,
 }
 
 /// Scattering and absorption coefficients at a point, m⁻¹, per lane.
@@ -340,12 +350,29 @@ impl SpectralLanes {
     /// from the chords' densities (air, aerosol at 340 nm, ozone): Rayleigh
     /// and aerosol as in [`Medium::coefficients`], ozone with the middle of
     /// the lane's cross-section range over temperature.
-    fn control(&self, densities: [f64; 3]) -> Lanes {
+    pub(super) fn control(&self, densities: [f64; 3]) -> Lanes {
         std::array::from_fn(|j| {
             self.rayleigh_m2[j] * densities[0]
                 + self.aerosol_factor[j] * densities[1]
                 + 0.5 * (self.ozone_max_m2[j] + self.ozone_min_m2[j]) * densities[2]
         })
+    }
+
+    /// Bound on |extinction − control| over the active lanes where the
+    /// profiles (air, aerosol at 340 nm, ozone) lie within `deviations` of
+    /// the densities the control was given, and ozone stays below
+    /// `ozone_max_m3` (its cross-section's spread over temperature about the
+    /// control's mid value), m⁻¹.
+    pub(super) fn residual_bound(&self, deviations: [f64; 3], ozone_max_m3: f64) -> f64 {
+        (0..self.active)
+            .map(|j| {
+                let (o_max, o_min) = (self.ozone_max_m2[j], self.ozone_min_m2[j]);
+                self.rayleigh_m2[j] * deviations[0]
+                    + self.aerosol_factor[j] * deviations[1]
+                    + 0.5 * (o_max + o_min) * deviations[2]
+                    + 0.5 * (o_max - o_min) * ozone_max_m3
+            })
+            .fold(0.0, f64::max)
     }
 
     /// Ozone cross-section of lane `j` at a typical stratospheric
@@ -470,6 +497,10 @@ impl Medium {
             .windows(2)
             .map(|w| bounds_between(w[0], w[1]))
             .collect();
+        let profile_nodes = nodes
+            .iter()
+            .map(|n| [n.air_m3, n.aerosol_340_per_m, n.ozone_m3])
+            .collect();
         Self {
             planet_radius_m: p.planet_radius_m,
             top_radius_m: p.planet_radius_m + top_m,
@@ -483,6 +514,8 @@ impl Medium {
             aerosol_phase: p.aerosol_phase,
             ozone_on: p.ozone,
             sun_columns: std::sync::OnceLock::new(),
+            column_table: std::sync::OnceLock::new(),
+            profile_nodes,
         }
     }
 
@@ -490,6 +523,14 @@ impl Medium {
     pub fn sun_columns(&self) -> &super::sunlight::SunColumns {
         self.sun_columns
             .get_or_init(|| super::sunlight::SunColumns::new(self))
+    }
+
+    /// The column table that serves as the shadow rays' control.
+    pub(super) fn column_table(&self) -> &ColumnTable {
+        self.column_table.get_or_init(|| {
+            let top_m = self.top_radius_m - self.planet_radius_m;
+            ColumnTable::new(self.planet_radius_m, top_m, self.profile_nodes.clone())
+        })
     }
 
     /// Coefficients at distance `radius_m` from the planet's centre.
@@ -643,10 +684,20 @@ impl Medium {
         if span.hits_ground {
             return [0.0; LANES];
         }
-        if estimator == TransmittanceEstimator::ResidualRatioTracking && bounds == Bounds::Tight {
-            return self.chord_transmittance(origin, dir, span, lanes, rng);
+        match (estimator, bounds) {
+            (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight) => {
+                let ends = (span.t_enter, span.t_exit);
+                self.column_table()
+                    .transmittance(self, origin, dir, ends, lanes, rng)
+                    .unwrap_or_else(|| self.chord_transmittance(origin, dir, span, lanes, rng))
+            }
+            (TransmittanceEstimator::ChordResidualRatioTracking, Bounds::Tight) => {
+                self.chord_transmittance(origin, dir, span, lanes, rng)
+            }
+            _ => {
+                self.transmittance_along(origin, dir, span, lanes, estimator, bounds, &mut [], rng)
+            }
         }
-        self.transmittance_along(origin, dir, span, lanes, estimator, bounds, &mut [], rng)
     }
 
     /// [`Self::transmittance_along`] without checkpoints, for residual ratio
@@ -715,8 +766,11 @@ impl Medium {
         while let Some(piece) = walk.next_piece(self) {
             // A chord across the whole atmosphere (global bounds) would be a
             // poor control: that variant keeps plain ratio tracking.
-            let chord = (estimator == TransmittanceEstimator::ResidualRatioTracking
-                && !walk.global)
+            let chord = (matches!(
+                estimator,
+                TransmittanceEstimator::ResidualRatioTracking
+                    | TransmittanceEstimator::ChordResidualRatioTracking
+            ) && !walk.global)
                 .then(|| &self.shells[piece.shell].chord);
             let shell = lanes.shell(&walk, piece.shell);
             let residual = if chord.is_some() {
@@ -808,10 +862,15 @@ impl Medium {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TransmittanceEstimator {
-    /// Residual ratio tracking (Novák et al. 2014) with each shell's chord of
-    /// the extinction as control.
+    /// Residual ratio tracking (Novák et al. 2014); on rays to the top of the
+    /// atmosphere (shadow rays) the control comes from a table of columns
+    /// ([`super::columns`]), elsewhere it is each shell's chord of the
+    /// extinction.
     #[default]
     ResidualRatioTracking,
+    /// Residual ratio tracking with the shells' chords as control everywhere
+    /// (a walk through every shell the ray crosses).
+    ChordResidualRatioTracking,
     /// Ratio tracking (Cramer 1978; Novák et al. 2014).
     RatioTracking,
     /// Delta tracking: a binary estimate (Woodcock et al. 1965).
@@ -1124,9 +1183,13 @@ mod tests {
 
     #[test]
     fn residual_ratio_tracking_matches_quadrature_with_little_noise() {
+        type Estimate<'a> = &'a dyn Fn(&mut Rng) -> Lanes;
         // Against exp(−τ) with τ from fine quadrature of the medium's own
-        // coefficients, within 4 standard errors (+1e-5 for the quadrature),
-        // and with little noise.
+        // coefficients, within 4 standard errors (+2e-6 for the quadrature),
+        // and with little noise — with the column table's control (shadow
+        // rays, `transmittance`) and with the shells' chords (`transmittance`
+        // with the chord variant, and `transmittance_along`, which segment
+        // estimates use).
         let medium = medium();
         let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
         let mut rng = Rng::new(5, 5);
@@ -1138,7 +1201,7 @@ mod tests {
             let mut depth = [0.0; LANES];
             let mut walk = medium.walk(origin, dir, span, Bounds::Tight);
             while let Some(piece) = walk.next_piece(&medium) {
-                let n = 400;
+                let n = 2000;
                 let h = (piece.t1 - piece.t0) / f64::from(n);
                 for i in 0..n {
                     let t = piece.t0 + h * (f64::from(i) + 0.5);
@@ -1148,40 +1211,62 @@ mod tests {
                     }
                 }
             }
-            let n = 4000;
-            let (mut sum, mut sum2) = ([0.0; LANES], [0.0; LANES]);
-            for _ in 0..n {
-                let t = medium.transmittance(
+            let steep = dir.z.abs() >= 0.5;
+            // Relative std limits, steep and grazing rays (measured at
+            // 440–680 nm: table 0.0007–0.010 and 0.017–0.28, the grazing
+            // ones noisier only where T < 1e-9; chords 0.013–0.027 and
+            // 0.055–0.15; the shell minimum as control gave 0.12–0.28 and up
+            // to 2.0).
+            let table = |rng: &mut Rng| {
+                let rrt = TransmittanceEstimator::ResidualRatioTracking;
+                medium.transmittance(origin, dir, &lanes, rrt, Bounds::Tight, rng)
+            };
+            let chords = |rng: &mut Rng| {
+                let rrt = TransmittanceEstimator::ChordResidualRatioTracking;
+                medium.transmittance(origin, dir, &lanes, rrt, Bounds::Tight, rng)
+            };
+            let along = |rng: &mut Rng| {
+                let rrt = TransmittanceEstimator::ResidualRatioTracking;
+                medium.transmittance_along(
                     origin,
                     dir,
+                    span,
                     &lanes,
-                    TransmittanceEstimator::ResidualRatioTracking,
+                    rrt,
                     Bounds::Tight,
-                    &mut rng,
-                );
-                for j in 0..LANES {
-                    sum[j] += t[j];
-                    sum2[j] += t[j] * t[j];
+                    &mut [],
+                    rng,
+                )
+            };
+            let estimators: [(&str, Estimate, f64); 3] = [
+                ("table", &table, if steep { 0.02 } else { 0.35 }),
+                ("chords", &chords, if steep { 0.06 } else { 0.2 }),
+                ("chords along", &along, if steep { 0.06 } else { 0.2 }),
+            ];
+            for (name, estimate, limit) in estimators {
+                let n = 4000;
+                let (mut sum, mut sum2) = ([0.0; LANES], [0.0; LANES]);
+                for _ in 0..n {
+                    let t = estimate(&mut rng);
+                    for j in 0..LANES {
+                        sum[j] += t[j];
+                        sum2[j] += t[j] * t[j];
+                    }
                 }
-            }
-            for j in 0..LANES {
-                let mean = sum[j] / f64::from(n);
-                let std = (sum2[j] / f64::from(n) - mean * mean).max(0.0).sqrt();
-                let expected = (-depth[j]).exp();
-                let se = std / f64::from(n).sqrt();
-                assert!(
-                    (mean - expected).abs() <= 4.0 * se + 1e-5 * expected,
-                    "{dir:?} lane {j}: {mean} vs {expected} ± {se}"
-                );
-                // The chord control: relative std ≤ 0.042 on the steep rays
-                // (elevation ≥ 30°), ≤ 0.15 on the grazing ones (measured at
-                // 440–680 nm; the shell minimum as control gave 0.12–0.28
-                // and up to 2.0).
-                let limit = if dir.z.abs() >= 0.5 { 0.06 } else { 0.2 };
-                assert!(
-                    std <= limit * expected,
-                    "{dir:?} lane {j}: std {std} of {expected}"
-                );
+                for j in 0..LANES {
+                    let mean = sum[j] / f64::from(n);
+                    let std = (sum2[j] / f64::from(n) - mean * mean).max(0.0).sqrt();
+                    let expected = (-depth[j]).exp();
+                    let se = std / f64::from(n).sqrt();
+                    assert!(
+                        (mean - expected).abs() <= 4.0 * se + 2e-6 * expected,
+                        "{name} {dir:?} lane {j}: {mean} vs {expected} ± {se}"
+                    );
+                    assert!(
+                        std <= limit * expected,
+                        "{name} {dir:?} lane {j}: std {std} of {expected}"
+                    );
+                }
             }
         }
     }
@@ -1211,6 +1296,7 @@ mod tests {
         let dir = DVec3::new(0.6, 0.0, 0.8);
         for estimator in [
             TransmittanceEstimator::ResidualRatioTracking,
+            TransmittanceEstimator::ChordResidualRatioTracking,
             TransmittanceEstimator::RatioTracking,
             TransmittanceEstimator::DeltaTracking,
         ] {

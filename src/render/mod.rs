@@ -6,6 +6,7 @@
 //! image does not depend on the number of threads.
 
 pub mod camera;
+pub mod columns;
 pub mod directions;
 pub mod film;
 pub mod guide;
@@ -53,8 +54,9 @@ pub struct Renderer {
     /// options that use it (`sky_guide`, `shadow_samples`,
     /// `sunlight_samples`), so the default render does not set it up.
     sky_guide: Option<guide::SkyGuide>,
-    /// The scene's integrator options with plain delta-tracked camera rays,
-    /// for the first pass (see [`Self::integrator`]).
+    /// The scene's integrator options with plain delta-tracked camera rays
+    /// and shadow rays through the shells, for the first pass (see
+    /// [`Self::integrator`]).
     draft_options: IntegratorOptions,
 }
 
@@ -102,6 +104,13 @@ impl Renderer {
                 sky_guide: 0.0,
                 sunlight_samples: 0,
                 shadow_samples: 0,
+                // The column table costs ~25 ms to build: not in the first frame.
+                shadow_transmittance: match scene.render.integrator.shadow_transmittance {
+                    TransmittanceEstimator::ResidualRatioTracking => {
+                        TransmittanceEstimator::ChordResidualRatioTracking
+                    }
+                    other => other,
+                },
                 ..scene.render.integrator.clone()
             },
             observer_m,
