@@ -104,7 +104,7 @@ impl Renderer {
                 sky_guide: 0.0,
                 sunlight_samples: 0,
                 shadow_samples: 0,
-                // The column table costs ~25 ms to build: not in the first frame.
+                // The column table takes ~20 ms to build: not in the first frame.
                 shadow_transmittance: match scene.render.integrator.shadow_transmittance {
                     TransmittanceEstimator::ResidualRatioTracking => {
                         TransmittanceEstimator::ChordResidualRatioTracking
