@@ -34,7 +34,7 @@
 //! the tabulated data change slope) inside it, with a 50 % margin. Residuals
 //! (bound / sea-level density): air 0.03 % (0.1 % on grazing rays), aerosol
 //! 0.1 % (up to 3 % on grazing rays low down), ozone 0.05–2 % of its peak.
-//! A ray whose bound expects more than [`MAX_EXPECTED_EVENTS`] residual
+//! A ray whose bound expects more than two residual
 //! events (grazing rays low down) goes through the shells' chords instead.
 //!
 //! Measured (`BENCHMARKS.md`, session 7): relative std of one shadow-ray
@@ -159,7 +159,7 @@ struct Cell {
 impl ColumnTable {
     /// Builds the table for a planet of radius `planet_radius_m` with an
     /// atmosphere `top_m` deep whose profiles (in the order of [`Profiles`])
-    /// are `nodes`, linear between nodes [`NODE_STEP_M`] apart from the
+    /// are `nodes`, linear between nodes 50 m apart from the
     /// ground ([`Medium`]'s cache); ~20 ms.
     pub fn new(planet_radius_m: f64, top_m: f64, nodes: Vec<Profiles>) -> Self {
         let mut table = Self {
@@ -530,7 +530,7 @@ impl ColumnTable {
     /// Unbiased transmittance estimate, per lane, along `dir` from `origin`
     /// (m, planet-centred) over `[t_enter, t_exit]`, the ray's whole
     /// remaining span to the top (it must not meet the ground); `None` where
-    /// the residual bound expects more than [`MAX_EXPECTED_EVENTS`] on the
+    /// the residual bound expects more than two events on the
     /// ray, which the walk through the shells then estimates faster.
     pub fn transmittance(
         &self,

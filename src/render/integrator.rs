@@ -32,7 +32,7 @@
 //!
 //! **Scattering directions** mix the phase function about the path's
 //! direction with the phase function about the sun's (`sun_lobe`, 0.3 by
-//! default; see [`Integrator::sample_scatter_direction`]).
+//! default; see `Integrator::sample_scatter_direction`).
 //!
 //! **Alternatives kept as options** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`):
@@ -232,7 +232,7 @@ impl<'a> Integrator<'a> {
 
     /// Uses `guide` for scattering directions (see
     /// [`IntegratorOptions::sky_guide`]) and for the distance densities of
-    /// [`Self::trace_sunlit`]'s segments.
+    /// `Self::trace_sunlit`'s segments.
     #[must_use]
     pub fn with_sky_guide(mut self, guide: &'a SkyGuide) -> Self {
         self.guide = Some(guide);

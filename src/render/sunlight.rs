@@ -437,7 +437,7 @@ impl CameraDensities {
 }
 
 /// Builds [`InScatterDistribution`]s of whole rays for one sun direction,
-/// with fixed representative lanes ([`CACHE_WAVELENGTHS_NM`]).
+/// with fixed representative lanes (`CACHE_WAVELENGTHS_NM`).
 pub struct DensityBuilder {
     sun_direction: DVec3,
     lanes: SpectralLanes,
