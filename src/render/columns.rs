@@ -81,6 +81,7 @@ const SLANT_PIECE_M: f64 = 10_000.0;
 /// ozone (m⁻³) — the order of [`SpectralLanes::control`].
 const PROFILES: usize = 3;
 
+/// One value per profile: air (m⁻³), aerosol extinction at 340 nm (m⁻¹), ozone (m⁻³).
 pub type Profiles = [f64; PROFILES];
 /// Entries of a table node: per profile g, then its slopes in node units
 /// along the cosine nodes, along the altitude nodes, and across both.
@@ -98,7 +99,7 @@ pub struct ColumnTable {
     /// Vertical column above each node, to the top.
     above_node: Vec<Profiles>,
     /// Slant factor g = V/C at (altitude node i, cosine node k) and its
-    /// slope along the cosine nodes, `[i * COSINE_NODES + k]`.
+    /// slopes (see [`Node`]), `[i * COSINE_NODES + k]`.
     table: Vec<Node>,
     /// Largest |profile − control| over the cells at or above altitude node
     /// i and at or above cosine node k (same layout).
@@ -309,7 +310,7 @@ impl ColumnTable {
         };
         let mut sum = [0.0; PROFILES];
         let mut s0 = r0 * mu;
-        // Finer than the table near the start, where the ray may graze.
+        // Between the table's altitude nodes above the start.
         let mut boundaries: Vec<f64> = (0..ALTITUDE_NODES)
             .map(|i| self.node_altitude_m(i))
             .filter(|&h| h > h_m)
@@ -402,7 +403,8 @@ impl ColumnTable {
         })
     }
 
-    /// g̃ at `cell` (see [`Self::slant_factor_derivatives`]).
+    /// g̃ at `cell` (see [`Self::slant_factor_derivatives`]; the same
+    /// weights without the derivatives, for the look-ups at a ray's start).
     fn slant_factor(&self, cell: &Cell) -> Profiles {
         let corners = self.corners(cell);
         let (ha, _) = hermite(cell.fa);
@@ -550,6 +552,10 @@ impl ColumnTable {
         }
         // The end is at the top, where C̃ = 0 (V vanishes there, up to rounding).
         let depth = lanes.control(self.columns(r0, mu0));
+        if !(rate.is_finite() && depth.iter().all(|d| d.is_finite())) {
+            // Defensive: never met in the tests; the walk is always valid.
+            return None;
+        }
         let mut factors = [1.0; LANES];
         if rate > 0.0 {
             let mut t = t_enter;
