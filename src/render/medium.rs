@@ -125,8 +125,9 @@ pub struct Medium {
     nodes: Vec<Node>,
     shell_radii_m: Vec<f64>,
     shells: Vec<ShellBounds>,
-    /// One shell spanning the whole atmosphere (the "global majorant" variant).
-    global: ShellBounds,
+    /// The shells' bounds as rows, and in the last slot the one shell
+    /// spanning the whole atmosphere (the "global majorant" variant).
+    shell_terms: ShellTerms,
     pub ground_albedo: f64,
     pub aerosol_g: f64,
     pub aerosol_albedo: f64,
@@ -162,6 +163,10 @@ impl Coefficients {
 
 /// Most shells any atmosphere top (≤ 200 km) produces.
 const MAX_SHELLS: usize = 40;
+/// Slots of [`ShellTerms`]: the shells, then the one global shell.
+const SHELL_SLOTS: usize = MAX_SHELLS + 1;
+/// The global shell's slot.
+const GLOBAL_SLOT: usize = MAX_SHELLS;
 
 /// Extinction bounds of one shell for the lanes of one path.
 #[derive(Clone, Copy, Debug, Default)]
@@ -173,37 +178,72 @@ struct ShellExtinction {
     residual: f64,
 }
 
-impl ShellExtinction {
-    #[allow(clippy::needless_range_loop)]
-    fn new(shell: &ShellBounds, lanes: &SpectralLanes) -> Self {
-        // Plain loops: this runs for every shell of every path.
-        let mut majorant = 0.0_f64;
-        let mut residual = 0.0_f64;
-        let deviation = &shell.chord.deviation;
-        for j in 0..LANES {
-            let (r, o_max, o_min, a) = (
-                lanes.rayleigh_m2[j],
-                lanes.ozone_max_m2[j],
-                lanes.ozone_min_m2[j],
-                lanes.aerosol_factor[j],
-            );
-            let max = r * shell.air_max + o_max * shell.ozone_max + a * shell.aerosol_max;
-            // The chords' deviations, and for ozone the spread of its cross
-            // section with temperature about the control's mid value.
-            let bound = r * deviation[0]
-                + a * deviation[1]
-                + 0.5 * (o_max + o_min) * deviation[2]
-                + 0.5 * (o_max - o_min) * shell.ozone_max;
-            if j < lanes.active {
-                majorant = majorant.max(max);
-                residual = residual.max(bound);
+/// The shells' density bounds as rows over the shells (the global shell in
+/// the last slot, unused slots zero), so that a path's bounds for all shells
+/// are a few vectorised loops: they are computed for every path.
+#[derive(Clone, Debug)]
+struct ShellTerms {
+    /// Largest air (m⁻³), ozone (m⁻³) and aerosol extinction at 340 nm
+    /// (m⁻¹) in the shell.
+    air_max: [f64; SHELL_SLOTS],
+    ozone_max: [f64; SHELL_SLOTS],
+    aerosol_max: [f64; SHELL_SLOTS],
+    /// The chords' deviations (air, aerosol, ozone; [`Chord::deviation`]).
+    deviation: [[f64; SHELL_SLOTS]; 3],
+}
+
+impl ShellTerms {
+    fn new(shells: &[ShellBounds], global: &ShellBounds) -> Self {
+        let mut terms = Self {
+            air_max: [0.0; SHELL_SLOTS],
+            ozone_max: [0.0; SHELL_SLOTS],
+            aerosol_max: [0.0; SHELL_SLOTS],
+            deviation: [[0.0; SHELL_SLOTS]; 3],
+        };
+        let slots = shells.iter().enumerate().chain([(GLOBAL_SLOT, global)]);
+        for (i, shell) in slots {
+            terms.air_max[i] = shell.air_max;
+            terms.ozone_max[i] = shell.ozone_max;
+            terms.aerosol_max[i] = shell.aerosol_max;
+            for k in 0..3 {
+                terms.deviation[k][i] = shell.chord.deviation[k];
             }
         }
-        Self {
-            majorant,
+        terms
+    }
+
+    /// Majorants and residual bounds of every slot for the lanes' constants
+    /// (Rayleigh cross-section, ozone cross-section range, aerosol factor),
+    /// each the largest over the lanes: `lanes` lists the active lanes'
+    /// constants, padded with the first.
+    #[allow(clippy::needless_range_loop)]
+    fn extinction(&self, lanes: &[[f64; 4]; LANES]) -> ([f64; SHELL_SLOTS], [f64; SHELL_SLOTS]) {
+        // `if a > b` rather than f64::max: no NaN can occur here, and the
+        // plain comparison vectorises.
+        let larger = |a: f64, b: f64| if a > b { a } else { b };
+        let mut majorant = [0.0; SHELL_SLOTS];
+        let mut residual = [0.0; SHELL_SLOTS];
+        for i in 0..SHELL_SLOTS {
+            let mut m = 0.0;
+            let mut r = 0.0;
+            for &[rayleigh, o_max, o_min, aerosol] in lanes {
+                let max = rayleigh * self.air_max[i]
+                    + o_max * self.ozone_max[i]
+                    + aerosol * self.aerosol_max[i];
+                // The chords' deviations, and for ozone the spread of its
+                // cross section with temperature about the control's mid value.
+                let bound = rayleigh * self.deviation[0][i]
+                    + aerosol * self.deviation[1][i]
+                    + 0.5 * (o_max + o_min) * self.deviation[2][i]
+                    + 0.5 * (o_max - o_min) * self.ozone_max[i];
+                m = larger(m, max);
+                r = larger(r, bound);
+            }
+            majorant[i] = m;
             // A relative margin for the rounding of the chord's evaluation.
-            residual: residual * (1.0 + 1e-9),
+            residual[i] = r * (1.0 + 1e-9);
         }
+        (majorant, residual)
     }
 }
 
@@ -222,9 +262,10 @@ pub struct SpectralLanes {
     aerosol_factor: Lanes,
     /// Top-of-atmosphere spectral irradiance, W m⁻² nm⁻¹ (or 1 for a unit sun).
     pub sun_irradiance: Lanes,
-    /// Shell bounds for these wavelengths, computed once per path.
-    shells: [ShellExtinction; MAX_SHELLS],
-    global: ShellExtinction,
+    /// Majorants and residual bounds per slot of [`ShellTerms`] for these
+    /// wavelengths, computed once per path.
+    majorants: [f64; SHELL_SLOTS],
+    residuals: [f64; SHELL_SLOTS],
 }
 
 /// The per-wavelength constants of one lane, in the order of
@@ -318,8 +359,8 @@ impl SpectralLanes {
         constants: &[LaneConstants; LANES],
     ) -> Self {
         let mut lanes = Self {
-            shells: [ShellExtinction::default(); MAX_SHELLS],
-            global: ShellExtinction::default(),
+            majorants: [0.0; SHELL_SLOTS],
+            residuals: [0.0; SHELL_SLOTS],
             wavelengths_nm,
             active,
             rayleigh_m2: [0.0; LANES],
@@ -339,10 +380,16 @@ impl SpectralLanes {
             lanes.ozone_max_m2[j] = c[4..].iter().copied().fold(0.0, f64::max);
             lanes.ozone_min_m2[j] = c[4..].iter().copied().fold(f64::INFINITY, f64::min);
         }
-        for (i, shell) in medium.shells.iter().enumerate() {
-            lanes.shells[i] = ShellExtinction::new(shell, &lanes);
-        }
-        lanes.global = ShellExtinction::new(&medium.global, &lanes);
+        let constants: [[f64; 4]; LANES] = std::array::from_fn(|j| {
+            let j = if j < active { j } else { 0 };
+            [
+                lanes.rayleigh_m2[j],
+                lanes.ozone_max_m2[j],
+                lanes.ozone_min_m2[j],
+                lanes.aerosol_factor[j],
+            ]
+        });
+        (lanes.majorants, lanes.residuals) = medium.shell_terms.extinction(&constants);
         lanes
     }
 
@@ -386,11 +433,11 @@ impl SpectralLanes {
         self.aerosol_factor[j]
     }
 
-    fn shell(&self, walk: &ShellWalk, shell: usize) -> &ShellExtinction {
-        if walk.global {
-            &self.global
-        } else {
-            &self.shells[shell]
+    fn shell(&self, walk: &ShellWalk, shell: usize) -> ShellExtinction {
+        let slot = if walk.global { GLOBAL_SLOT } else { shell };
+        ShellExtinction {
+            majorant: self.majorants[slot],
+            residual: self.residuals[slot],
         }
     }
 }
@@ -493,10 +540,11 @@ impl Medium {
             }
         };
         assert!(boundaries.len() <= MAX_SHELLS + 1, "too many shells");
-        let shells = boundaries
+        let shells: Vec<ShellBounds> = boundaries
             .windows(2)
             .map(|w| bounds_between(w[0], w[1]))
             .collect();
+        let shell_terms = ShellTerms::new(&shells, &bounds_between(0.0, top_m));
         let profile_nodes = nodes
             .iter()
             .map(|n| [n.air_m3, n.aerosol_340_per_m, n.ozone_m3])
@@ -504,7 +552,7 @@ impl Medium {
         Self {
             planet_radius_m: p.planet_radius_m,
             top_radius_m: p.planet_radius_m + top_m,
-            global: bounds_between(0.0, top_m),
+            shell_terms,
             shell_radii_m: boundaries.iter().map(|b| b + p.planet_radius_m).collect(),
             shells,
             nodes,
@@ -719,7 +767,7 @@ impl Medium {
             let chord = &self.shells[piece.shell].chord;
             let (s0, s1) = (piece.t0 - walk.perigee_t, piece.t1 - walk.perigee_t);
             let piece_columns = chord.columns(walk.perigee2, s0, s1);
-            let residual = lanes.shells[piece.shell].residual;
+            let residual = lanes.residuals[piece.shell];
             let mut t = piece.t0;
             while residual > 0.0 && budget < residual * (piece.t1 - t) {
                 t += budget / residual;
