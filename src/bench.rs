@@ -561,6 +561,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("russian_roulette=false", |s| {
             s.render.integrator.russian_roulette = false;
         }),
+        ("sampler=independent", |s| {
+            s.render.integrator.sampler = crate::render::Sampler::Independent;
+        }),
     ]
 }
 
@@ -1079,12 +1082,10 @@ pub fn format_report(report: &Report) -> String {
 pub fn run(args: &BenchArgs) -> Result<(), String> {
     let report = bench(args)?;
     if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?
-        );
+        let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
+        crate::cli::emit(&format!("{json}\n"));
     } else {
-        print!("{}", format_report(&report));
+        crate::cli::emit(&format_report(&report));
     }
     Ok(())
 }

@@ -13,6 +13,29 @@ use crate::physics::standard_atmosphere;
 use crate::render::{service, Renderer};
 use crate::scene::{CameraKind, Scene, SceneError, MAX_ALTITUDE_M};
 
+/// Writes `text` to standard output. A reader that closed the pipe early
+/// (`skyrender radiance … | head -n 3`) ends the program quietly with
+/// success, as other command-line tools do, where `print!` would panic; any
+/// other write error ends it with a one-line error.
+pub fn emit(text: &str) {
+    use std::io::Write;
+    let mut out = std::io::stdout().lock();
+    if let Err(e) = out.write_all(text.as_bytes()).and_then(|()| out.flush()) {
+        if e.kind() == std::io::ErrorKind::BrokenPipe {
+            std::process::exit(0);
+        }
+        eprintln!("skyrender: error: cannot write to standard output: {e}");
+        std::process::exit(2);
+    }
+}
+
+/// `println!` through [`emit`].
+macro_rules! outln {
+    ($($arg:tt)*) => {
+        emit(&format!("{}\n", format_args!($($arg)*)))
+    };
+}
+
 /// Physically based spectral sky renderer. Without a subcommand, opens the
 /// interactive preview.
 #[derive(Parser, Debug)]
@@ -348,7 +371,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
                     .unwrap_or("")
                     .trim_start_matches('#')
                     .trim();
-                println!("{name:<10} {summary}");
+                outln!("{name:<10} {summary}");
             }
             Ok(())
         }
@@ -380,7 +403,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
             })?;
             bar.finish_and_clear();
             let seconds = start.elapsed().as_secs_f64();
-            println!(
+            outln!(
                 "{}x{} at {spp} spp in {seconds:.2} s ({:.3} M paths/s), {discarded} samples discarded -> {}",
                 scene.render.width,
                 scene.render.height,
@@ -427,19 +450,21 @@ pub fn run(command: Command) -> Result<(), CliError> {
                     "unit_sun": scene.render.unit_sun,
                     "spectrum": spectrum,
                 });
-                println!("{}", serde_json::to_string_pretty(&value).expect("json"));
+                outln!("{}", serde_json::to_string_pretty(&value).expect("json"));
             } else {
                 let unit = if scene.render.unit_sun {
                     "per unit TOA irradiance, sr^-1"
                 } else {
                     "W m^-2 sr^-1 nm^-1"
                 };
-                println!("# view zenith {view_zenith} deg, azimuth {view_azimuth} deg, {samples} paths per wavelength");
-                println!("# wavelength_nm  radiance ({unit})  std_error");
+                outln!("# view zenith {view_zenith} deg, azimuth {view_azimuth} deg, {samples} paths per wavelength");
+                outln!("# wavelength_nm  radiance ({unit})  std_error");
                 for s in spectrum {
-                    println!(
+                    outln!(
                         "{:>8.2}  {:.6e}  {:.3e}",
-                        s.wavelength_nm, s.radiance, s.std_error
+                        s.wavelength_nm,
+                        s.radiance,
+                        s.std_error
                     );
                 }
             }
@@ -469,10 +494,10 @@ pub fn run(command: Command) -> Result<(), CliError> {
                 "optical_depth": depth,
             });
             if json {
-                println!("{}", serde_json::to_string_pretty(&value).expect("json"));
+                outln!("{}", serde_json::to_string_pretty(&value).expect("json"));
             } else {
                 for (k, v) in value.as_object().expect("object") {
-                    println!("{k:<22} {v}");
+                    outln!("{k:<22} {v}");
                 }
             }
             Ok(())

@@ -1,7 +1,7 @@
 //! The command line: outputs, their metadata, and every kind of bad input.
 
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::{Command, Output, Stdio};
 
 fn skyrender(args: &[&str]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_skyrender"))
@@ -289,4 +289,31 @@ fn no_subcommand_without_display_points_at_the_cli() {
     let err = stderr(&out);
     assert_eq!(err.trim().lines().count(), 1, "{err}");
     assert!(err.contains("skyrender render"), "{err}");
+}
+
+#[test]
+fn a_reader_that_closes_the_pipe_early_ends_the_program_quietly() {
+    // `skyrender radiance … | head -n 1`: the reader is gone before the
+    // probe prints (it computes first), so the write meets a closed pipe.
+    let mut child = Command::new(env!("CARGO_BIN_EXE_skyrender"))
+        .args([
+            "radiance",
+            "--view-zenith",
+            "30",
+            "--view-azimuth",
+            "90",
+            "--wavelengths",
+            "400:700:10",
+            "--samples",
+            "2000",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    drop(child.stdout.take());
+    let out = child.wait_with_output().unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(!stderr.contains("panicked"), "{stderr}");
+    assert!(out.status.success(), "{:?}: {stderr}", out.status);
 }

@@ -22,7 +22,7 @@ use rayon::prelude::*;
 
 pub use camera::{direction_from_az_el, Camera};
 pub use film::Film;
-pub use integrator::{Integrator, IntegratorOptions};
+pub use integrator::{Integrator, IntegratorOptions, Sampler};
 pub use medium::{LaneTable, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 
 use crate::atmosphere::Atmosphere;
@@ -104,6 +104,9 @@ impl Renderer {
                 sky_guide: 0.0,
                 sunlight_samples: 0,
                 shadow_samples: 0,
+                // The Sobol prefix costs ~4 % of a full path and the draft's
+                // single pass gains nothing from stratification across passes.
+                sampler: Sampler::Independent,
                 // The column table takes ~20 ms to build: not in the first frame.
                 shadow_transmittance: match scene.render.integrator.shadow_transmittance {
                     TransmittanceEstimator::ResidualRatioTracking => {
@@ -202,7 +205,11 @@ impl Renderer {
     ) -> Option<[f64; 3]> {
         let width = self.scene.render.width;
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);
-        let mut rng = Rng::for_sample(self.scene.render.seed, u64::from(pass), pixel);
+        let (seed, pass_index) = (self.scene.render.seed, u64::from(pass));
+        let mut rng = match integrator.options.sampler {
+            Sampler::Sobol => Rng::for_pixel_sample(seed, pass_index, pixel),
+            Sampler::Independent => Rng::for_sample(seed, pass_index, pixel),
+        };
         let px = f64::from(x) + rng.uniform();
         let py = f64::from(y) + rng.uniform();
         let Some(dir) = self.camera.direction(px, py) else {
