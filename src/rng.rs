@@ -4,28 +4,28 @@
 //! Every pixel sample owns a generator seeded from (scene seed, pass, pixel),
 //! so images do not depend on how rayon schedules the work.
 //!
-//! **Low-discrepancy prefix** ([`Rng::for_pixel_sample`]): the first
+//! **Low-discrepancy prefix** ([`Rng::with_sobol_prefix`]): the first
 //! [`SOBOL_DIMENSIONS`] uniforms of a pixel sample are the coordinates of
-//! point `pass` of an Owen-scrambled Sobol sequence (Burley 2020, "Practical
+//! one point per pass of an Owen-scrambled Sobol sequence (Burley 2020, "Practical
 //! Hash-based Owen Scrambling", JCGT 9(4); the `sobol_burley` crate), scrambled
 //! per pixel. One scrambled point is uniform over the unit cube (Owen 1995),
 //! so every sample, and the pixel mean, stays unbiased; across the passes of
 //! a pixel the points are stratified, so the first decisions of a path (the
 //! pixel position, the camera ray's scattering points and the first
 //! scattering directions) cover their domain evenly and the noise they cause
-//! falls faster than 1/√N. Later uniforms, and all of them past pass 2¹⁶
-//! (the sequence's length), come from PCG32. A per-sample variance estimate
+//! falls faster than 1/√N. Later uniforms, and all of them past the
+//! sequence's 2¹⁶ points, come from PCG32. A per-sample variance estimate
 //! assumes independent samples: the spectral-radiance probe keeps
 //! [`Rng::for_sample`].
 
 /// PCG-XSH-RR 64/32 (O'Neill 2014, "PCG: A Family of Simple Fast
 /// Space-Efficient Statistically Good Algorithms for Random Number Generation").
-/// Uniforms of a pixel sample drawn from the Sobol point ([`Rng::for_pixel_sample`]).
+/// Uniforms of a pixel sample drawn from the Sobol point ([`Rng::with_sobol_prefix`]).
 pub const SOBOL_DIMENSIONS: usize = 32;
 /// Most values [`Rng::replaying`] serves.
 const MAX_REPLAY: usize = 8;
-/// Passes the Sobol sequence covers (`sobol_burley`'s limit).
-const SOBOL_PASSES: u64 = 1 << 16;
+/// Points of the Sobol sequence (`sobol_burley`'s limit).
+pub const SOBOL_POINTS: u64 = 1 << 16;
 
 #[derive(Clone, Debug)]
 pub struct Rng {
@@ -75,20 +75,21 @@ impl Rng {
         Self::new(mix64(seed ^ mix64(pass)), pixel)
     }
 
-    /// [`Self::for_sample`] whose first [`SOBOL_DIMENSIONS`] uniforms are the
-    /// coordinates of Sobol point `pass`, Owen-scrambled per pixel (see the
-    /// module's docs); past pass 2¹⁶, plain [`Self::for_sample`].
-    pub fn for_pixel_sample(seed: u64, pass: u64, pixel: u64) -> Self {
-        let mut rng = Self::for_sample(seed, pass, pixel);
-        if pass < SOBOL_PASSES {
-            // A scramble per pixel: the pixels' sequences are independent.
-            let scramble = mix64(seed ^ mix64(pixel ^ 0x50b0_1000)) as u32;
-            for (set, chunk) in rng.prefix.chunks_exact_mut(4).enumerate() {
-                chunk.copy_from_slice(&sobol_burley::sample_4d(pass as u32, set as u32, scramble));
-            }
-            rng.prefix_len = SOBOL_DIMENSIONS as u8;
+    /// This generator with a low-discrepancy prefix: its next
+    /// [`SOBOL_DIMENSIONS`] uniforms are the coordinates of point `index`
+    /// (< 2¹⁶; see [`SOBOL_POINTS`]) of the Sobol sequence Owen-scrambled for
+    /// `pixel` under `seed` (see the module's docs).
+    #[must_use]
+    pub fn with_sobol_prefix(mut self, seed: u64, pixel: u64, index: u32) -> Self {
+        debug_assert!(u64::from(index) < SOBOL_POINTS);
+        // A scramble per pixel: the pixels' sequences are independent.
+        let scramble = mix64(seed ^ mix64(pixel ^ 0x50b0_1000)) as u32;
+        for (set, chunk) in self.prefix.chunks_exact_mut(4).enumerate() {
+            chunk.copy_from_slice(&sobol_burley::sample_4d(index, set as u32, scramble));
         }
-        rng
+        self.prefix_next = 0;
+        self.prefix_len = SOBOL_DIMENSIONS as u8;
+        self
     }
 
     /// Runs `f` with `values` (each in [0, 1)) served as its first uniforms,
@@ -166,7 +167,8 @@ mod tests {
         let mut sum = vec![0.0; dims];
         for pixel in 0..64 {
             for pass in 0..64 {
-                let mut rng = Rng::for_pixel_sample(3, pass, pixel);
+                let mut rng =
+                    Rng::for_sample(3, pass, pixel).with_sobol_prefix(3, pixel, pass as u32);
                 for s in &mut sum {
                     let u = rng.uniform();
                     assert!((0.0..1.0).contains(&u));
@@ -189,7 +191,8 @@ mod tests {
         let mut values = vec![Vec::new(); SOBOL_DIMENSIONS + 1];
         for pixel in 0..64 {
             for pass in 0..64 {
-                let mut rng = Rng::for_pixel_sample(11, pass, pixel);
+                let mut rng =
+                    Rng::for_sample(11, pass, pixel).with_sobol_prefix(11, pixel, pass as u32);
                 for v in &mut values {
                     v.push(rng.uniform());
                 }
@@ -221,7 +224,8 @@ mod tests {
         for pixel in [0, 17, 1234] {
             let points: Vec<Vec<f64>> = (0..64)
                 .map(|pass| {
-                    let mut rng = Rng::for_pixel_sample(5, pass, pixel);
+                    let mut rng =
+                        Rng::for_sample(5, pass, pixel).with_sobol_prefix(5, pixel, pass as u32);
                     (0..SOBOL_DIMENSIONS).map(|_| rng.uniform()).collect()
                 })
                 .collect();
@@ -256,14 +260,18 @@ mod tests {
 
     #[test]
     fn pixels_get_different_scrambles_and_samples_repeat() {
-        let first = |pixel| Rng::for_pixel_sample(9, 3, pixel).uniform();
+        let first = |pixel| {
+            Rng::for_sample(9, 3, pixel)
+                .with_sobol_prefix(9, pixel, 3)
+                .uniform()
+        };
         assert_ne!(first(0), first(1));
         assert_eq!(first(7), first(7));
     }
 
     #[test]
     fn replaying_serves_the_values_then_the_stream() {
-        let mut plain = Rng::for_pixel_sample(1, 2, 3);
+        let mut plain = Rng::for_sample(1, 2, 3).with_sobol_prefix(1, 3, 2);
         let mut replayed = plain.clone();
         let values = [0.25, 0.5, 0.75];
         let (served, next) = replayed.replaying(&values, |rng| {

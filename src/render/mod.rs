@@ -26,7 +26,7 @@ pub use integrator::{Integrator, IntegratorOptions, Sampler};
 pub use medium::{LaneTable, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 
 use crate::atmosphere::Atmosphere;
-use crate::rng::Rng;
+use crate::rng::{Rng, SOBOL_POINTS};
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
 use sunlight::CameraDensities;
@@ -205,10 +205,16 @@ impl Renderer {
     ) -> Option<[f64; 3]> {
         let width = self.scene.render.width;
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);
-        let (seed, pass_index) = (self.scene.render.seed, u64::from(pass));
+        let seed = self.scene.render.seed;
+        let rng = Rng::for_sample(seed, u64::from(pass), pixel);
+        // The full passes 1, 2, … take the sequence's points 0, 1, … (so that
+        // every 2ᵐ of them are stratified); the draft pass 0 and passes past
+        // the sequence's end draw independent numbers.
         let mut rng = match integrator.options.sampler {
-            Sampler::Sobol => Rng::for_pixel_sample(seed, pass_index, pixel),
-            Sampler::Independent => Rng::for_sample(seed, pass_index, pixel),
+            Sampler::Sobol if (1..=SOBOL_POINTS).contains(&u64::from(pass)) => {
+                rng.with_sobol_prefix(seed, pixel, pass - 1)
+            }
+            _ => rng,
         };
         let px = f64::from(x) + rng.uniform();
         let py = f64::from(y) + rng.uniform();
