@@ -46,7 +46,8 @@ pub struct BenchArgs {
     #[arg(long, value_name = "SECONDS")]
     pub budget: Option<f64>,
     /// Comma-separated scenes: midday, sunset, twilight, space (256×128
-    /// equirect) and preview (the app's default preview).
+    /// equirect) and preview (the app's default preview) by default; any
+    /// other preset (afternoon, airliner) on request.
     #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
     pub scenes: Option<Vec<String>>,
     /// Worker threads (default: all cores).
@@ -104,16 +105,21 @@ pub fn noise_target(scene: &str) -> Option<f64> {
 }
 
 /// The scene benchmarked under `name`: a preset as a 256×128 equirect map
-/// (the preset's sun, observer and atmosphere), or `preview`, the app's
-/// default preview scene.
+/// (the preset's sun, observer and atmosphere; [`DEFAULT_SCENES`] by
+/// default, any preset on request), or `preview`, the app's default preview
+/// scene.
 pub fn bench_scene(name: &str) -> Result<Scene, String> {
     if name.eq_ignore_ascii_case(PREVIEW) {
         return Ok(crate::app::state::AppState::default().preview_scene());
     }
-    if !DEFAULT_SCENES.contains(&name) {
+    let is_preset = crate::scene::PRESETS
+        .iter()
+        .any(|(preset, _)| *preset == name);
+    if !is_preset {
+        let presets: Vec<&str> = crate::scene::PRESETS.iter().map(|(p, _)| *p).collect();
         return Err(format!(
-            "bench: unknown scene '{name}' (valid: {})",
-            DEFAULT_SCENES.join(", ")
+            "bench: unknown scene '{name}' (valid: {PREVIEW}, {})",
+            presets.join(", ")
         ));
     }
     let mut scene = Scene::preset(name).map_err(|e| e.to_string())?;
@@ -536,8 +542,11 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("camera_branches=8", |s| {
             s.render.integrator.camera_branches = 8;
         }),
+        ("sunlight_samples=0", |s| {
+            s.render.integrator.sunlight_samples = Some(0);
+        }),
         ("sunlight_samples=1", |s| {
-            s.render.integrator.sunlight_samples = 1;
+            s.render.integrator.sunlight_samples = Some(1);
         }),
         ("sky_guide=0.25", |s| {
             s.render.integrator.sky_guide = 0.25;

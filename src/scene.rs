@@ -306,7 +306,9 @@ impl Scene {
             1,
             crate::render::LANES,
         )?;
-        check_count("sunlight samples", i.sunlight_samples as usize, 0, samples)?;
+        if let Some(n) = i.sunlight_samples {
+            check_count("sunlight samples", n as usize, 0, samples)?;
+        }
         check_count("shadow samples", i.shadow_samples as usize, 0, samples)?;
         check_count("camera samples", i.camera_samples as usize, 0, samples)?;
         check_count("camera branches", i.camera_branches as usize, 1, branches)?;

@@ -298,14 +298,14 @@ fn estimator_variants_agree_statistically() {
         (
             "one sunlight sample",
             IntegratorOptions {
-                sunlight_samples: 1,
+                sunlight_samples: Some(1),
                 ..Default::default()
             },
         ),
         (
             "four sunlight samples",
             IntegratorOptions {
-                sunlight_samples: 4,
+                sunlight_samples: Some(4),
                 ..Default::default()
             },
         ),
@@ -369,7 +369,7 @@ fn sunlight_sampling_is_unbiased_in_twilight() {
     ] {
         let run = |sunlight_samples: u32, sun_lobe: f64, paths: u32| {
             let options = IntegratorOptions {
-                sunlight_samples,
+                sunlight_samples: Some(sunlight_samples),
                 sun_lobe,
                 ..IntegratorOptions::default()
             };
@@ -513,7 +513,7 @@ fn sky_guide_is_unbiased() {
                 },
                 IntegratorOptions {
                     sky_guide: 0.25,
-                    sunlight_samples: 2,
+                    sunlight_samples: Some(2),
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
                 },
@@ -522,7 +522,9 @@ fn sky_guide_is_unbiased() {
                 let what = format!(
                     "{altitude_m} m, view ({az}, {el}), order {order:?}, guide {}, shadow {}, \
                      sunlight {}",
-                    options.sky_guide, options.shadow_samples, options.sunlight_samples
+                    options.sky_guide,
+                    options.shadow_samples,
+                    options.sunlight_samples()
                 );
                 assert_agree(&what, run(options, 10_000), (reference, reference_se));
             }

@@ -34,22 +34,22 @@
 //! direction with the phase function about the sun's (`sun_lobe`, 0.3 by
 //! default; see `Integrator::sample_scatter_direction`).
 //!
+//! **Segment estimates at low sun.** With the sun lower than
+//! [`LOW_SUN_ELEVATION_DEG`], `sunlight_samples` (1 by default there)
+//! estimates every segment like the camera ray's, from the [`SkyGuide`]'s
+//! cached densities of rays from points of the same altitude and solar
+//! zenith (without a guide, from a density built per segment,
+//! [`super::sunlight`]), the path going on from its first real scattering:
+//! at sunset and twilight most light reaches a path from thin sunlit
+//! stretches of long rays, which chance collisions rarely hit. Higher up
+//! the sun, delta tracking wins at equal time.
+//!
 //! **Alternatives kept as options** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`):
-//! * `sunlight_samples` estimates every segment like the camera ray's, from
-//!   the [`SkyGuide`]'s cached densities of rays from points of the same
-//!   altitude and solar zenith (without a guide, from a density built per
-//!   segment, [`super::sunlight`]), the path going on from its first real
-//!   scattering;
-//! * `shadow_samples` does so only on segments that start in the planet's
-//!   shadow;
+//! * `shadow_samples` estimates only the segments that start in the
+//!   planet's shadow that way;
 //! * `sky_guide` draws scattering directions in the shadow from the table of
 //!   incoming once-scattered light ([`super::guide`]).
-//!
-//! At twilight these cut the variance of second-order light per path ~5×,
-//! but the heavier tails of higher orders (paths that wander into sunlit air
-//! after several scatterings) stay, and the segment estimate's transmittance
-//! pass over whole grazing rays costs ~2.5× a delta-tracked segment.
 //!
 //! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
 //! Every random decision (real vs. null, phase-function component and angle)
@@ -94,9 +94,12 @@ pub struct IntegratorOptions {
     pub camera_branches: u32,
     /// Next-event points per path segment drawn from the expected-sunlight
     /// density of [`super::sunlight`] (stratified; the path goes on from a
-    /// further point drawn from its skylight part), 0–8. 0 (the default) =
-    /// delta tracking with a next-event estimate at every tentative collision.
-    pub sunlight_samples: u32,
+    /// further point drawn from its skylight part), 0–8. 0 = delta tracking
+    /// with a next-event estimate at every tentative collision. Unset (the
+    /// default): the renderer picks 1 when the sun is lower than
+    /// [`LOW_SUN_ELEVATION_DEG`] above the observer's horizon, else 0 (see
+    /// [`Self::resolved`]); an integrator built directly reads unset as 0.
+    pub sunlight_samples: Option<u32>,
     /// Share of scattering directions drawn from the phase function about
     /// the sun's direction instead of the path's (0–1; default 0.3).
     pub sun_lobe: f64,
@@ -134,13 +137,42 @@ impl Default for IntegratorOptions {
             next_event_estimation: true,
             camera_samples: 1,
             camera_branches: 4,
-            sunlight_samples: 0,
+            sunlight_samples: None,
             sun_lobe: 0.3,
             sky_guide: 0.0,
             shadow_samples: 0,
             russian_roulette: true,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
+        }
+    }
+}
+
+/// Below this sun elevation (at the observer) the renderer estimates every
+/// path segment through points drawn from its expected sunlight (one per
+/// segment, [`IntegratorOptions::sunlight_samples`]), above it by delta
+/// tracking. Measured at equal time (`bench --variants sunlight_samples=1`,
+/// `BENCHMARKS.md`, session 8): the segment estimates need 0.45–0.52× the
+/// time of delta tracking at −4° and 0.68–0.77× at 2°, but 1.13× at 6°,
+/// 1.38× at 10° and 1.4–1.6× at 15°, 20° and 45°: low down, most of the
+/// sky's light comes from thin sunlit stretches of long rays that chance
+/// collisions rarely hit.
+pub const LOW_SUN_ELEVATION_DEG: f64 = 4.0;
+
+impl IntegratorOptions {
+    /// Next-event points per segment ([`Self::sunlight_samples`]; unset = 0).
+    pub fn sunlight_samples(&self) -> u32 {
+        self.sunlight_samples.unwrap_or(0)
+    }
+
+    /// These options with every unset choice made for a scene whose sun
+    /// stands `sun_elevation_deg` above the observer's horizon.
+    #[must_use]
+    pub fn resolved(&self, sun_elevation_deg: f64) -> Self {
+        let low_sun = sun_elevation_deg < LOW_SUN_ELEVATION_DEG;
+        Self {
+            sunlight_samples: Some(self.sunlight_samples.unwrap_or(u32::from(low_sun))),
+            ..self.clone()
         }
     }
 }
@@ -331,14 +363,14 @@ impl<'a> Integrator<'a> {
                     let start = beta[..lanes.active].iter().copied().fold(0.0, f64::max);
                     let scale = if start > 0.0 { 1.0 / start } else { 1.0 };
                     let from = (x, new_dir, 1, scale);
-                    if opts.sunlight_samples > 0 {
+                    if opts.sunlight_samples() > 0 {
                         self.trace_sunlit(from, beta, lanes, &mut radiance, rng);
                     } else {
                         self.trace(from, beta, lanes, &mut radiance, rng);
                     }
                 }
             }
-            _ if opts.sunlight_samples > 0 && opts.next_event_estimation => {
+            _ if opts.sunlight_samples() > 0 && opts.next_event_estimation => {
                 let from = (origin, dir, 0, 1.0);
                 self.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, rng);
             }
@@ -452,7 +484,7 @@ impl<'a> Integrator<'a> {
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
         let span = segment.span;
-        let n = (opts.sunlight_samples as usize).min(MAX_SUNLIGHT_SAMPLES);
+        let n = (opts.sunlight_samples() as usize).min(MAX_SUNLIGHT_SAMPLES);
         if depth >= max_order {
             return self.estimate_segment(&segment, beta, None, (0, 1), lanes, radiance, rng)[0];
         }
@@ -674,7 +706,7 @@ impl<'a> Integrator<'a> {
         let density = at.density(self.medium, segment.dir, segment.span);
         let n = (self
             .options
-            .sunlight_samples
+            .sunlight_samples()
             .max(self.options.shadow_samples) as usize)
             .min(MAX_SUNLIGHT_SAMPLES);
         self.estimate_segment(segment, beta, Some(&density), (n, 0), lanes, radiance, rng);
@@ -1066,4 +1098,39 @@ fn cosine_sample_hemisphere(normal: DVec3, rng: &mut Rng) -> DVec3 {
     let z = (1.0 - r * r).max(0.0).sqrt();
     let (t, b) = orthonormal_basis(normal);
     (t * (r * phi.cos()) + b * (r * phi.sin()) + normal * z).normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unset_sunlight_samples_follow_the_sun_and_set_ones_stay() {
+        let auto = IntegratorOptions::default();
+        assert_eq!(auto.sunlight_samples, None);
+        assert_eq!(auto.sunlight_samples(), 0);
+        for (elevation_deg, expected) in [(-4.0, 1), (2.0, 1), (3.9, 1), (4.0, 0), (45.0, 0)] {
+            let resolved = auto.resolved(elevation_deg);
+            assert_eq!(
+                resolved.sunlight_samples,
+                Some(expected),
+                "{elevation_deg}°"
+            );
+            assert_eq!(
+                IntegratorOptions {
+                    sunlight_samples: None,
+                    ..resolved
+                },
+                auto
+            );
+        }
+        for set in [0, 3] {
+            let options = IntegratorOptions {
+                sunlight_samples: Some(set),
+                ..IntegratorOptions::default()
+            };
+            assert_eq!(options.resolved(-4.0), options);
+            assert_eq!(options.resolved(45.0), options);
+        }
+    }
 }

@@ -54,6 +54,9 @@ pub struct Renderer {
     /// options that use it (`sky_guide`, `shadow_samples`,
     /// `sunlight_samples`), so the default render does not set it up.
     sky_guide: Option<guide::SkyGuide>,
+    /// The scene's integrator options, every unset choice made for the scene
+    /// ([`IntegratorOptions::resolved`]).
+    options: IntegratorOptions,
     /// The scene's integrator options with plain delta-tracked camera rays
     /// and shadow rays through the shells, for the first pass (see
     /// [`Self::integrator`]).
@@ -92,30 +95,32 @@ impl Renderer {
             scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
         );
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
+        let options = scene.render.integrator.resolved(scene.sun.elevation_deg);
         Ok(Self {
             camera_densities: CameraDensities::new(&medium, observer_m, sun_direction),
             sky_guide: {
-                let i = &scene.render.integrator;
-                (i.sky_guide > 0.0 || i.shadow_samples > 0 || i.sunlight_samples > 0)
+                let i = &options;
+                (i.sky_guide > 0.0 || i.shadow_samples > 0 || i.sunlight_samples() > 0)
                     .then(|| guide::SkyGuide::new(&medium, sun_direction))
             },
             draft_options: IntegratorOptions {
                 camera_samples: 0,
                 sky_guide: 0.0,
-                sunlight_samples: 0,
+                sunlight_samples: Some(0),
                 shadow_samples: 0,
                 // The Sobol prefix costs ~4 % of a full path and the draft's
                 // single pass gains nothing from stratification across passes.
                 sampler: Sampler::Independent,
                 // The column table takes ~20 ms to build: not in the first frame.
-                shadow_transmittance: match scene.render.integrator.shadow_transmittance {
+                shadow_transmittance: match options.shadow_transmittance {
                     TransmittanceEstimator::ResidualRatioTracking => {
                         TransmittanceEstimator::ChordResidualRatioTracking
                     }
                     other => other,
                 },
-                ..scene.render.integrator.clone()
+                ..options.clone()
             },
+            options,
             observer_m,
             sun_direction,
             cmf,
@@ -162,7 +167,7 @@ impl Renderer {
         let options = if pass == 0 {
             &self.draft_options
         } else {
-            &self.scene.render.integrator
+            &self.options
         };
         let integrator = Integrator::new(&self.medium, options, self.sun_direction)
             .with_camera_densities(&self.camera_densities);
