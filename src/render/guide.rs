@@ -23,11 +23,13 @@
 //! whatever the table's error.
 //!
 //! Used through the options `sky_guide`, `shadow_samples` and
-//! `sunlight_samples` of [`super::IntegratorOptions`], all off by default:
-//! second-order light at twilight gets ~25× cheaper per path, but the heavier
-//! tails of higher orders stay and the segment estimates cost ~2.5× a
-//! delta-tracked path, so no option wins at equal time (`BENCHMARKS.md`,
-//! "The sky guide").
+//! `sunlight_samples` of [`super::IntegratorOptions`]. The last is on by
+//! default with the sun below [`super::integrator::LOW_SUN_ELEVATION_DEG`],
+//! where its segment estimates, through this guide's cached densities, win
+//! at equal time (`BENCHMARKS.md`, session 8); the other two are off: the
+//! directions from the table make second-order light at twilight ~25×
+//! cheaper per path, but the heavier tails of higher orders stay
+//! (`BENCHMARKS.md`, "The sky guide").
 
 use std::sync::OnceLock;
 
