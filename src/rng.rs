@@ -6,9 +6,9 @@
 //!
 //! **Low-discrepancy prefix** ([`Rng::with_sobol_prefix`]): the first
 //! [`SOBOL_DIMENSIONS`] uniforms of a pixel sample are the coordinates of
-//! one point per pass of an Owen-scrambled Sobol sequence (Burley 2020, "Practical
-//! Hash-based Owen Scrambling", JCGT 9(4); the `sobol_burley` crate), scrambled
-//! per pixel. One scrambled point is uniform over the unit cube (Owen 1995),
+//! one point per pass of an Owen-scrambled Sobol sequence (Burley 2020,
+//! "Practical Hash-based Owen Scrambling", JCGT 9(4); the `sobol_burley`
+//! crate), scrambled per pixel. One scrambled point is uniform over the unit cube (Owen 1995),
 //! so every sample, and the pixel mean, stays unbiased; across the passes of
 //! a pixel the points are stratified, so the first decisions of a path (the
 //! pixel position, the camera ray's scattering points and the first
@@ -18,8 +18,6 @@
 //! assumes independent samples: the spectral-radiance probe keeps
 //! [`Rng::for_sample`].
 
-/// PCG-XSH-RR 64/32 (O'Neill 2014, "PCG: A Family of Simple Fast
-/// Space-Efficient Statistically Good Algorithms for Random Number Generation").
 /// Uniforms of a pixel sample drawn from the Sobol point ([`Rng::with_sobol_prefix`]).
 pub const SOBOL_DIMENSIONS: usize = 32;
 /// Most values [`Rng::replaying`] serves.
@@ -27,6 +25,9 @@ const MAX_REPLAY: usize = 8;
 /// Points of the Sobol sequence (`sobol_burley`'s limit).
 pub const SOBOL_POINTS: u64 = 1 << 16;
 
+/// PCG-XSH-RR 64/32 (O'Neill 2014, "PCG: A Family of Simple Fast
+/// Space-Efficient Statistically Good Algorithms for Random Number
+/// Generation"), with the optional Sobol prefix and a replay buffer.
 #[derive(Clone, Debug)]
 pub struct Rng {
     state: u64,
