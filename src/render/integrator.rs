@@ -151,13 +151,13 @@ impl Default for IntegratorOptions {
 /// Below this sun elevation (at the observer) the renderer estimates every
 /// path segment through points drawn from its expected sunlight (one per
 /// segment, [`IntegratorOptions::sunlight_samples`]), above it by delta
-/// tracking. Measured at equal time (`bench --variants sunlight_samples=1`,
-/// `BENCHMARKS.md`, session 8): the segment estimates need 0.45–0.52× the
-/// time of delta tracking at −4° and 0.68–0.77× at 2°, but 1.13× at 6°,
-/// 1.38× at 10° and 1.4–1.6× at 15°, 20° and 45°: low down, most of the
-/// sky's light comes from thin sunlit stretches of long rays that chance
-/// collisions rarely hit.
-pub const LOW_SUN_ELEVATION_DEG: f64 = 4.0;
+/// tracking. Measured at equal time (`bench --variants sunlight_samples=…`,
+/// `BENCHMARKS.md`, session 8), the segment estimates need 0.45–0.52× the
+/// time of delta tracking at −4°, 0.68–0.77× at 2°, 0.95–1.03× at 3°, but
+/// 1.11× at 5°, 1.13× at 6°, 1.38× at 10° and 1.4–1.6× at 15°, 20° and 45°:
+/// low down, most of the sky's light comes from thin sunlit stretches of
+/// long rays that chance collisions rarely hit.
+pub const LOW_SUN_ELEVATION_DEG: f64 = 3.0;
 
 impl IntegratorOptions {
     /// Next-event points per segment ([`Self::sunlight_samples`]; unset = 0).
@@ -1109,7 +1109,7 @@ mod tests {
         let auto = IntegratorOptions::default();
         assert_eq!(auto.sunlight_samples, None);
         assert_eq!(auto.sunlight_samples(), 0);
-        for (elevation_deg, expected) in [(-4.0, 1), (2.0, 1), (3.9, 1), (4.0, 0), (45.0, 0)] {
+        for (elevation_deg, expected) in [(-4.0, 1), (2.0, 1), (2.9, 1), (3.0, 0), (45.0, 0)] {
             let resolved = auto.resolved(elevation_deg);
             assert_eq!(
                 resolved.sunlight_samples,
