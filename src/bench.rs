@@ -112,17 +112,9 @@ pub fn bench_scene(name: &str) -> Result<Scene, String> {
     if name.eq_ignore_ascii_case(PREVIEW) {
         return Ok(crate::app::state::AppState::default().preview_scene());
     }
-    let is_preset = crate::scene::PRESETS
-        .iter()
-        .any(|(preset, _)| *preset == name);
-    if !is_preset {
-        let presets: Vec<&str> = crate::scene::PRESETS.iter().map(|(p, _)| *p).collect();
-        return Err(format!(
-            "bench: unknown scene '{name}' (valid: {PREVIEW}, {})",
-            presets.join(", ")
-        ));
-    }
-    let mut scene = Scene::preset(name).map_err(|e| e.to_string())?;
+    // Scene::preset's error names the unknown preset and the valid ones.
+    let mut scene =
+        Scene::preset(name).map_err(|e| format!("bench: {e} (or the scene '{PREVIEW}')"))?;
     scene.camera.kind = CameraKind::Equirect;
     scene.render.width = BENCH_WIDTH;
     scene.render.height = BENCH_HEIGHT;

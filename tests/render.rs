@@ -184,12 +184,11 @@ fn sobol_and_independent_samplers_agree() {
     // 20° of the sun, whose few disc hits would swamp the rest.
     let sun =
         skyrender::render::direction_from_az_el(sobol.sun.azimuth_deg, sobol.sun.elevation_deg);
+    let camera = skyrender::render::Camera::new(&sobol.camera, width, height);
     let sky: Vec<usize> = (0..(width * height / 2) as usize)
         .filter(|&i| {
             let (x, y) = (f64::from(i as u32 % width), f64::from(i as u32 / width));
-            let az = (x + 0.5) / f64::from(width) * 360.0 - 180.0;
-            let el = 90.0 - (y + 0.5) / f64::from(height) * 180.0;
-            let dir = skyrender::render::direction_from_az_el(az, el);
+            let dir = camera.direction(x + 0.5, y + 0.5).unwrap();
             dir.dot(sun) < 20.0_f64.to_radians().cos()
         })
         .collect();
