@@ -142,11 +142,11 @@ fn paths(c: &mut Criterion) {
         &scene.render.integrator,
         renderer.sun_direction(),
     );
-    let mut pass = 0u32;
+    let mut sample = 0u64;
     c.bench_function("path/sample_pixel/midday_256x128_row_40", |b| {
         b.iter(|| {
-            pass = pass.wrapping_add(1);
-            renderer.sample_pixel(&pixel_integrator, black_box(100), 40, pass)
+            sample = sample.wrapping_add(1);
+            renderer.sample_pixel(&pixel_integrator, black_box(100), 40, sample)
         });
     });
 }

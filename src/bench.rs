@@ -275,20 +275,24 @@ struct Rendered {
 }
 
 /// Render whole passes of `renderer` for about `seconds`: another pass is
-/// started only while it is expected to end less than half a pass past
-/// `seconds` (so the time spent is the nearest pass boundary; at least one
-/// pass).
+/// started only while it is expected (as long as the last one) to end less
+/// than half a pass past `seconds` (so the time spent is the nearest pass
+/// boundary; at least one pass). The last pass, not the mean: the draft and
+/// first passes are cheaper than the adaptive ones after them.
 fn render_for(renderer: &Renderer, seconds: f64) -> Rendered {
     let mut film = renderer.new_film();
     let mut paths = 0;
     let mut pass = 0u32;
     let cpu_start = process_cpu_seconds();
     let start = Instant::now();
+    let mut last_end = 0.0;
     loop {
         paths += renderer.render_pass(&mut film, pass, &|| false).paths;
         pass += 1;
         let elapsed = start.elapsed().as_secs_f64();
-        if elapsed + 0.5 * elapsed / f64::from(pass) > seconds {
+        let last_pass = elapsed - last_end;
+        last_end = elapsed;
+        if elapsed + 0.5 * last_pass > seconds {
             let cpu_seconds = match (cpu_start, process_cpu_seconds()) {
                 (Some(a), Some(b)) => b - a,
                 _ => f64::NAN,
@@ -564,6 +568,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
+        }),
+        ("adaptive_sampling=false", |s| {
+            s.render.adaptive_sampling = false;
         }),
     ]
 }

@@ -135,9 +135,13 @@ pub struct SceneArgs {
     pub width: Option<i64>,
     #[arg(long, allow_hyphen_values = true, value_name = "H")]
     pub height: Option<i64>,
-    /// Samples per pixel.
+    /// Samples per pixel: passes over the image; with adaptive sampling, the
+    /// least samples a pixel gets (noisy regions get up to 8 per pass).
     #[arg(long, allow_hyphen_values = true, value_name = "N")]
     pub spp: Option<i64>,
+    /// One sample per pixel per pass everywhere (no adaptive sampling).
+    #[arg(long)]
+    pub no_adaptive: bool,
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
     #[arg(long)]
@@ -224,6 +228,9 @@ impl SceneArgs {
         }
         if let Some(v) = self.seed {
             scene.render.seed = v;
+        }
+        if self.no_adaptive {
+            scene.render.adaptive_sampling = false;
         }
         if self.no_aerosols {
             scene.atmosphere.aerosols = false;
@@ -403,8 +410,17 @@ pub fn run(command: Command) -> Result<(), CliError> {
             })?;
             bar.finish_and_clear();
             let seconds = start.elapsed().as_secs_f64();
+            // Adaptive sampling gives noisy pixels more than one sample per
+            // pass: say how many paths a pixel got on average.
+            let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
+            let mean_spp = paths as f64 / pixels;
+            let adaptive = if scene.render.adaptive_sampling && mean_spp > f64::from(spp) {
+                format!(" (adaptive: {mean_spp:.1} per pixel on average)")
+            } else {
+                String::new()
+            };
             outln!(
-                "{}x{} at {spp} spp in {seconds:.2} s ({:.3} M paths/s), {discarded} samples discarded -> {}",
+                "{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M paths/s), {discarded} samples discarded -> {}",
                 scene.render.width,
                 scene.render.height,
                 paths as f64 / seconds / 1e6,

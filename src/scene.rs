@@ -121,6 +121,11 @@ pub struct RenderParams {
     pub observer: Observer,
     /// PNG exposure in EV; `None` = automatic.
     pub exposure_ev: Option<f64>,
+    /// After the first full pass, give each pixel 1–8 samples per pass, more
+    /// where its neighbourhood is noisy (unbiased: see
+    /// [`crate::render::film`]); `spp` then counts passes, the least samples
+    /// a pixel gets.
+    pub adaptive_sampling: bool,
     pub integrator: IntegratorOptions,
 }
 
@@ -134,6 +139,7 @@ impl Default for RenderParams {
             unit_sun: false,
             observer: Observer::JuddVos,
             exposure_ev: None,
+            adaptive_sampling: true,
             integrator: IntegratorOptions::default(),
         }
     }

@@ -28,7 +28,7 @@ fn small(preset: &str, width: u32, height: u32, spp: u32) -> Scene {
 
 #[test]
 fn same_seed_same_image_whatever_the_thread_count() {
-    let scene = small("sunset", 24, 12, 3);
+    let scene = small("sunset", 24, 12, 4);
     let one = render(&scene, 1);
     let two = render(&scene, 2);
     let three = render(&scene, 3);
@@ -162,29 +162,48 @@ fn twilight_casts_the_earths_shadow_and_skylight_fills_it() {
 
 #[test]
 fn sobol_and_independent_samplers_agree() {
-    // The low-discrepancy prefix must not move any pixel's expectation:
-    // per pixel, the difference of the two samplers' means (different seeds)
-    // has mean zero; its mean over the sky pixels, against its standard
-    // error from the spread over pixels (independent: each pixel has its own
-    // scramble and stream), within 4 standard errors (the standard error is
-    // ~0.5 % of the sky's mean: a bias above ~2 % fails). A guard against
-    // gross errors only: the renderer's importance sampling is good enough
-    // that even squaring every prefix uniform moves the sky by < 1 %; the
-    // prefix's own uniformity, independence and stratification are tested in
-    // `skyrender::rng`.
-    let (width, height) = (32, 16);
-    let mut sobol = small("midday", width, height, 48);
+    // The low-discrepancy prefix must not move any pixel's expectation. A
+    // guard against gross errors only: the renderer's importance sampling is
+    // good enough that even squaring every prefix uniform moves the sky by
+    // < 1 %; the prefix's own uniformity, independence and stratification are
+    // tested in `skyrender::rng`.
+    let mut sobol = small("midday", 32, 16, 48);
     sobol.render.integrator.sampler = skyrender::render::Sampler::Sobol;
     let mut independent = sobol.clone();
     independent.render.integrator.sampler = skyrender::render::Sampler::Independent;
     independent.render.seed = sobol.render.seed ^ 0x5eed;
+    assert_same_sky(&sobol, &independent);
+}
+
+#[test]
+fn adaptive_and_uniform_sampling_agree() {
+    // Adaptive sampling changes how many samples each pixel averages, never
+    // what they average to. A pixel's weights going wrong (say, its planned
+    // samples counted once) would make the planned pixels several times too
+    // bright; that the plan ignores the pixel's own samples, which keeps it
+    // unbiased, is tested in `skyrender::render::film`.
+    let mut adaptive = small("sunset", 32, 16, 48);
+    adaptive.render.adaptive_sampling = true;
+    let mut uniform = adaptive.clone();
+    uniform.render.adaptive_sampling = false;
+    uniform.render.seed = adaptive.render.seed ^ 0x5eed;
+    assert_same_sky(&adaptive, &uniform);
+}
+
+/// Renders `a` and `b` (different seeds) and asserts their sky has the same
+/// expectation: per pixel, the difference of the two means has mean zero;
+/// its mean over the sky pixels, against its standard error from the spread
+/// over pixels (independent: each pixel has its own streams), lies within 4
+/// standard errors, and that standard error is below 1 % of the sky's mean
+/// (~0.5 %: a bias above ~2 % fails).
+fn assert_same_sky(a: &Scene, b: &Scene) {
+    let (width, height) = (a.render.width, a.render.height);
     let luminance = |p: &[f32; 3]| f64::from(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
-    let (a, b) = (render(&sobol, 2), render(&independent, 2));
+    let (image_a, image_b) = (render(a, 2), render(b, 2));
     // The upper half of the equirect map (the sky) without the pixels within
     // 20° of the sun, whose few disc hits would swamp the rest.
-    let sun =
-        skyrender::render::direction_from_az_el(sobol.sun.azimuth_deg, sobol.sun.elevation_deg);
-    let camera = skyrender::render::Camera::new(&sobol.camera, width, height);
+    let sun = skyrender::render::direction_from_az_el(a.sun.azimuth_deg, a.sun.elevation_deg);
+    let camera = skyrender::render::Camera::new(&a.camera, width, height);
     let sky: Vec<usize> = (0..(width * height / 2) as usize)
         .filter(|&i| {
             let (x, y) = (f64::from(i as u32 % width), f64::from(i as u32 / width));
@@ -194,13 +213,13 @@ fn sobol_and_independent_samplers_agree() {
         .collect();
     let d: Vec<f64> = sky
         .iter()
-        .map(|&i| luminance(&a[i]) - luminance(&b[i]))
+        .map(|&i| luminance(&image_a[i]) - luminance(&image_b[i]))
         .collect();
     let n = d.len() as f64;
     let mean = d.iter().sum::<f64>() / n;
     let var = d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0);
     let se = (var / n).sqrt();
-    let sky_mean = sky.iter().map(|&i| luminance(&b[i])).sum::<f64>() / n;
+    let sky_mean = sky.iter().map(|&i| luminance(&image_b[i])).sum::<f64>() / n;
     assert!(mean.abs() < 4.0 * se, "mean difference {mean} vs SE {se}");
     assert!(
         se < 0.01 * sky_mean,

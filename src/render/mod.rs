@@ -35,6 +35,11 @@ use sunlight::CameraDensities;
 /// spread 1-D sequence (Weyl; the three-distance theorem).
 const GOLDEN_RATIO_CONJUGATE: f64 = 0.618_033_988_749_894_8;
 
+/// With adaptive sampling on, the pass whose start fixes each pixel's
+/// samples per pass ([`Film::plan_samples`]): after the draft and the first
+/// full pass, so the plan reads one full sample per pixel.
+pub const ADAPTIVE_FROM_PASS: u32 = 2;
+
 /// A scene made ready to render.
 pub struct Renderer {
     pub scene: Scene,
@@ -199,25 +204,28 @@ impl Renderer {
         (self.lane_table.lanes(wavelengths, n, &self.medium), pdfs)
     }
 
-    /// One XYZ sample (Y in cd m⁻²) through pixel (x, y), or `None` if the
-    /// estimate was not finite and non-negative.
+    /// The `sample`-th XYZ sample (Y in cd m⁻²) through pixel (x, y), or
+    /// `None` if the estimate was not finite and non-negative. A pixel's
+    /// samples are numbered across passes: 0 is the draft pass's, 1 the first
+    /// full pass's, then consecutively through each pass's samples (one per
+    /// pass without a plan, so the number is the pass; see [`Self::render_pass`]).
     pub fn sample_pixel(
         &self,
         integrator: &Integrator<'_>,
         x: u32,
         y: u32,
-        pass: u32,
+        sample: u64,
     ) -> Option<[f64; 3]> {
         let width = self.scene.render.width;
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);
         let seed = self.scene.render.seed;
-        let rng = Rng::for_sample(seed, u64::from(pass), pixel);
-        // The full passes 1, 2, … take the sequence's points 0, 1, … (so that
-        // every 2ᵐ of them are stratified); the draft pass 0 and passes past
-        // the sequence's end draw independent numbers.
+        let rng = Rng::for_sample(seed, sample, pixel);
+        // Samples 1, 2, … take the sequence's points 0, 1, … (so that every
+        // 2ᵐ of them are stratified); the draft sample 0 and samples past the
+        // sequence's end draw independent numbers.
         let mut rng = match integrator.options.sampler {
-            Sampler::Sobol if (1..=SOBOL_POINTS).contains(&u64::from(pass)) => {
-                rng.with_sobol_prefix(seed, pixel, pass - 1)
+            Sampler::Sobol if (1..=SOBOL_POINTS).contains(&sample) => {
+                rng.with_sobol_prefix(seed, pixel, (sample - 1) as u32)
             }
             _ => rng,
         };
@@ -232,7 +240,7 @@ impl Renderer {
         // pixel mean stays unbiased, but the spectrum is covered evenly and
         // colour noise falls faster than with independent wavelengths.
         let start = Rng::new(self.scene.render.seed, pixel).uniform();
-        let u0 = (start + f64::from(pass) * GOLDEN_RATIO_CONJUGATE).fract();
+        let u0 = (start + sample as f64 * GOLDEN_RATIO_CONJUGATE).fract();
         let (lanes, pdfs) = self.sample_lanes(u0);
         let radiance = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
         let n = lanes.active;
@@ -249,7 +257,10 @@ impl Renderer {
             .then_some(xyz)
     }
 
-    /// Add one sample to every pixel of `film` (pass number `pass`). Stops
+    /// Add pass number `pass` to `film`: one sample per pixel, or, once the
+    /// film is planned, each pixel's planned number of samples. With
+    /// adaptive sampling on, the plan is made from the image when pass
+    /// [`ADAPTIVE_FROM_PASS`] starts (see [`Film::plan_samples`]). Stops
     /// between rows once `cancelled()` returns true.
     pub fn render_pass(
         &self,
@@ -257,42 +268,67 @@ impl Renderer {
         pass: u32,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> PassStats {
+        if self.scene.render.adaptive_sampling
+            && pass == ADAPTIVE_FROM_PASS
+            && !film.is_planned()
+            && film.complete_passes() == pass
+        {
+            film.plan_samples();
+        }
         let integrator = self.integrator(pass);
         let width = film.width as usize;
         let discarded = AtomicU64::new(0);
-        let rows_done = AtomicU64::new(0);
+        let paths = AtomicU64::new(0);
         let weight = Self::pass_weight(pass);
+        let planned = film.is_planned();
+        let plan = &film.plan;
         film.xyz_sum
             .par_chunks_mut(width)
             .zip(film.row_passes.par_iter_mut())
             .zip(film.row_weights.par_iter_mut())
+            .zip(film.row_planned_passes.par_iter_mut())
             .enumerate()
-            .for_each(|(y, ((row, passes), row_weight))| {
+            .for_each(|(y, (((row, passes), row_weight), planned_passes))| {
                 if cancelled() || *passes != pass {
                     return;
                 }
+                let mut row_paths = 0;
                 for (x, sum) in row.iter_mut().enumerate() {
-                    match self.sample_pixel(&integrator, x as u32, y as u32, pass) {
-                        Some(xyz) => {
-                            for c in 0..3 {
-                                sum[c] += (weight * xyz[c]) as f32;
+                    // Samples planned after pass `ADAPTIVE_FROM_PASS − 1` are
+                    // numbered on from there, consecutively per pixel.
+                    let (first, count) = if planned {
+                        let m = u64::from(plan[y * width + x]);
+                        let done = u64::from(pass - ADAPTIVE_FROM_PASS);
+                        (u64::from(ADAPTIVE_FROM_PASS) + done * m, m)
+                    } else {
+                        (u64::from(pass), 1)
+                    };
+                    for sample in first..first + count {
+                        match self.sample_pixel(&integrator, x as u32, y as u32, sample) {
+                            Some(xyz) => {
+                                for c in 0..3 {
+                                    sum[c] += (weight * xyz[c]) as f32;
+                                }
+                            }
+                            None => {
+                                discarded.fetch_add(1, Ordering::Relaxed);
                             }
                         }
-                        None => {
-                            discarded.fetch_add(1, Ordering::Relaxed);
-                        }
                     }
+                    row_paths += count;
                 }
                 *passes += 1;
                 *row_weight += weight;
-                rows_done.fetch_add(1, Ordering::Relaxed);
+                if planned {
+                    *planned_passes += 1;
+                }
+                paths.fetch_add(row_paths, Ordering::Relaxed);
             });
         let discarded = discarded.into_inner();
         film.discarded += discarded;
-        let rows = rows_done.into_inner();
         PassStats {
             completed: film.row_passes.iter().all(|&p| p > pass),
-            paths: rows * width as u64,
+            paths: paths.into_inner(),
             discarded,
         }
     }
@@ -358,39 +394,73 @@ mod tests {
     use super::*;
 
     #[test]
-    fn the_film_weights_the_draft_pass() {
-        // The film's pixel = Σ wₚ·sampleₚ / Σ wₚ, with the draft (pass 0)
-        // weighted 1/8 and every other pass 1 (f32 sums: 1e-5 relative).
+    fn the_film_weights_every_sample_by_its_pass() {
+        // The film's pixel = Σ w·sample / Σ w over the pixel's samples: the
+        // draft (pass 0) weighted 1/8, every later sample 1 — with adaptive
+        // sampling the m samples a planned pixel takes per pass from pass 2
+        // on, numbered consecutively (f32 sums: 1e-5 relative).
         let mut scene = Scene::preset("sunset").unwrap();
         scene.render.width = 24;
         scene.render.height = 12;
+        scene.render.adaptive_sampling = true;
         let renderer = Renderer::new(&scene).unwrap();
         let mut film = renderer.new_film();
-        for pass in 0..3 {
+        for pass in 0..4 {
             renderer.render_pass(&mut film, pass, &|| false);
         }
-        for (x, y) in [(3, 2), (12, 5), (20, 9)] {
-            let mut sum = [0.0; 3];
-            let mut weights = 0.0;
-            for pass in 0..3 {
-                let integrator = renderer.integrator(pass);
-                let xyz = renderer.sample_pixel(&integrator, x, y, pass).unwrap();
-                let w = Renderer::pass_weight(pass);
-                weights += w;
+        assert!(film.is_planned());
+        let mut planned = Vec::new();
+        for y in 0..12 {
+            for x in 0..24 {
+                let m = film.samples_per_pass((y * 24 + x) as usize);
+                planned.push(m);
+                if (x + y) % 5 != 0 {
+                    continue;
+                }
+                let mut sum = [0.0; 3];
+                let mut weights = 0.0;
+                let mut add = |pass: u32, sample: u64| {
+                    let integrator = renderer.integrator(pass);
+                    let xyz = renderer.sample_pixel(&integrator, x, y, sample).unwrap();
+                    let w = Renderer::pass_weight(pass);
+                    weights += w;
+                    for c in 0..3 {
+                        sum[c] += w * xyz[c];
+                    }
+                };
+                add(0, 0);
+                add(1, 1);
+                for sample in 2..2 + 2 * u64::from(m) {
+                    add(2 + ((sample - 2) / u64::from(m)) as u32, sample);
+                }
+                assert!((weights - (1.125 + 2.0 * f64::from(m))).abs() < 1e-12);
+                let got = film.xyz(x, y);
                 for c in 0..3 {
-                    sum[c] += w * xyz[c];
+                    let expected = sum[c] / weights;
+                    assert!(
+                        (got[c] - expected).abs() <= 1e-5 * expected.abs() + 1e-9,
+                        "pixel ({x}, {y}) channel {c}: {} vs {expected}",
+                        got[c]
+                    );
                 }
             }
-            assert!((weights - 2.125_f64).abs() < 1e-12);
-            let got = film.xyz(x, y);
-            for c in 0..3 {
-                let expected = sum[c] / weights;
-                assert!(
-                    (got[c] - expected).abs() <= 1e-5 * expected.abs() + 1e-9,
-                    "pixel ({x}, {y}) channel {c}: {} vs {expected}",
-                    got[c]
-                );
-            }
         }
+        // The sunset glow plans more samples than the clear sky above it.
+        assert!(planned.iter().any(|&m| m > 1) && planned.contains(&1));
+    }
+
+    #[test]
+    fn without_adaptive_sampling_every_pass_takes_one_sample() {
+        let mut scene = Scene::preset("sunset").unwrap();
+        scene.render.width = 24;
+        scene.render.height = 12;
+        scene.render.adaptive_sampling = false;
+        let renderer = Renderer::new(&scene).unwrap();
+        let mut film = renderer.new_film();
+        for pass in 0..4 {
+            let stats = renderer.render_pass(&mut film, pass, &|| false);
+            assert_eq!(stats.paths, 24 * 12);
+        }
+        assert!(!film.is_planned());
     }
 }
