@@ -14,6 +14,8 @@
 //! unbiased — unlike adaptive schemes that stop sampling a pixel once its
 //! own estimate looks converged.
 
+use rayon::prelude::*;
+
 use crate::output::RgbImage;
 use crate::spectrum::xyz_to_rec709;
 
@@ -22,13 +24,17 @@ pub const MAX_SAMPLES_PER_PASS: u8 = 8;
 /// Half-width of the neighbourhood whose spread plans a pixel's samples,
 /// pixels (a 9×9 window without its centre).
 const PLAN_RADIUS: usize = 4;
-/// Samples per pass ≈ this × (neighbourhood spread / mean spread), clamped to
-/// 1–[`MAX_SAMPLES_PER_PASS`]. Measured on the four benchmark scenes
-/// (256×128, one pilot sample per pixel, per-pixel variances from 32–48
-/// further samples; `BENCHMARKS.md`, session 9): 1.5 gave the lowest noise at
-/// equal time of the rules tried (1, 1.5, 2 × mean; 1 × median), about
-/// 1.5 samples per pixel per pass on average.
-const PLAN_SCALE: f64 = 1.5;
+/// Samples per pass ≈ this × (neighbourhood spread / median spread), clamped
+/// to 1–[`MAX_SAMPLES_PER_PASS`]. Measured on the four benchmark scenes
+/// (`BENCHMARKS.md`, session 9).
+const PLAN_SCALE: f64 = 1.0;
+/// Resolution of the spreads' histogram, bins per octave (the median is
+/// taken to within 2^(1/8), 9 %: plenty for a sample count).
+const BINS_PER_OCTAVE: f32 = 8.0;
+/// log₂ of the smallest positive f32 is −149: bin = ⌊(log₂ σ + 150) × 8⌋.
+const LOG2_OFFSET: f32 = 150.0;
+/// Bins: 0 for σ = 0 (not counted), then up to log₂ σ = 128.
+const BINS: usize = ((LOG2_OFFSET + 129.0) * BINS_PER_OCTAVE) as usize;
 
 #[derive(Clone, Debug)]
 pub struct Film {
@@ -130,12 +136,14 @@ impl Film {
 }
 
 /// Samples per pass for a `width`×`height` image of luminances (row-major):
-/// [`PLAN_SCALE`] × σᵢ / σ̄ᵢ, rounded and clamped to
+/// [`PLAN_SCALE`] × σᵢ / σ̃ᵢ, rounded and clamped to
 /// 1–[`MAX_SAMPLES_PER_PASS`]. σᵢ is the standard deviation of the values in
 /// the window Wᵢ of (2R+1)² pixels about pixel i (clipped at the borders)
-/// *without* pixel i; σ̄ᵢ is the mean of σⱼ over the pixels j outside Wᵢ —
-/// exactly those whose windows miss pixel i — so no part of the plan of
-/// pixel i reads pixel i's value.
+/// *without* pixel i. σ̃ᵢ is the median of the positive σⱼ over the pixels j
+/// outside Wᵢ — exactly those whose windows miss pixel i — so no part of
+/// the plan of pixel i reads pixel i's value. A median, not a mean: the
+/// sun's disc or one firefly in a window makes its σⱼ millions of times the
+/// rest, and a mean would then give every other pixel one sample.
 fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
     let mut spread = vec![0.0f32; width * height];
     for_each_window(luminance, width, height, |i, sum, sum_sq, n| {
@@ -146,17 +154,75 @@ fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
             spread[i] = ((s2 / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt() as f32;
         }
     });
-    let total: f64 = spread.iter().map(|&v| f64::from(v)).sum();
-    let pixels = width * height;
-    let mut plan = vec![1u8; pixels];
-    for_each_window(&spread, width, height, |i, near, _, n| {
-        let far = (total - near) / (pixels - n).max(1) as f64;
-        if far > 0.0 {
-            let m = PLAN_SCALE * f64::from(spread[i]) / far;
-            plan[i] = m.round().clamp(1.0, f64::from(MAX_SAMPLES_PER_PASS)) as u8;
+    let bins: Vec<u16> = spread.iter().map(|&s| spread_bin(s)).collect();
+    // cumulative[b] = positive spreads in bins ≤ b.
+    let mut cumulative = vec![0u32; BINS];
+    for &b in &bins {
+        cumulative[usize::from(b)] += u32::from(b > 0);
+    }
+    for b in 1..BINS {
+        cumulative[b] += cumulative[b - 1];
+    }
+    let positive = cumulative[BINS - 1];
+    let r = PLAN_RADIUS;
+    let mut plan = vec![1u8; width * height];
+    plan.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
+        let rows = y.saturating_sub(r)..(y + r + 1).min(height);
+        let mut window = [0u16; (2 * PLAN_RADIUS + 1) * (2 * PLAN_RADIUS + 1)];
+        for (x, m) in row.iter_mut().enumerate() {
+            let columns = x.saturating_sub(r)..(x + r + 1).min(width);
+            let mut n = 0;
+            for yy in rows.clone() {
+                for &b in &bins[yy * width + columns.start..yy * width + columns.end] {
+                    if b > 0 {
+                        window[n] = b;
+                        n += 1;
+                    }
+                }
+            }
+            let far = positive - n as u32;
+            if far == 0 {
+                continue;
+            }
+            // The far set's lower median: the first bin b whose far count
+            // (cumulative − the window's) passes rank k. That count grows
+            // with b, so bisect between the bins where the whole image's
+            // count passes k and k + n.
+            let k = (far - 1) / 2;
+            let far_below = |b: usize| {
+                cumulative[b] - window[..n].iter().filter(|&&w| usize::from(w) <= b).count() as u32
+            };
+            let mut lo = cumulative.partition_point(|&c| c <= k);
+            let mut hi = cumulative.partition_point(|&c| c <= k + n as u32);
+            while lo < hi {
+                let mid = usize::midpoint(lo, hi);
+                if far_below(mid) > k {
+                    hi = mid;
+                } else {
+                    lo = mid + 1;
+                }
+            }
+            let median = bin_centre(lo);
+            let samples = PLAN_SCALE * f64::from(spread[y * width + x]) / median;
+            *m = samples.round().clamp(1.0, f64::from(MAX_SAMPLES_PER_PASS)) as u8;
         }
     });
     plan
+}
+
+/// Histogram bin of a spread: 0 for zero (or non-finite), else its log₂
+/// scaled by [`BINS_PER_OCTAVE`].
+fn spread_bin(spread: f32) -> u16 {
+    if spread > 0.0 && spread.is_finite() {
+        ((spread.log2() + LOG2_OFFSET) * BINS_PER_OCTAVE).clamp(1.0, (BINS - 1) as f32) as u16
+    } else {
+        0
+    }
+}
+
+/// The geometric centre of bin `b`'s spreads.
+fn bin_centre(b: usize) -> f64 {
+    ((b as f64 + 0.5) / f64::from(BINS_PER_OCTAVE) - f64::from(LOG2_OFFSET)).exp2()
 }
 
 /// Calls `f(i, Σ v, Σ v², n)` for every pixel i of a `width`×`height` image
@@ -218,15 +284,13 @@ mod tests {
 
     #[test]
     fn noisy_regions_get_more_samples_within_the_cap() {
-        // Left half clean, right half noisy (σ ≈ 29 about 100).
+        // Three quarters faintly noisy (σ ≈ 0.3 about 100), the last quarter
+        // noisy (σ ≈ 29): the median spread is the faint one.
         let (w, h) = (40, 20);
         let image: Vec<f32> = (0..w * h)
             .map(|i| {
-                if i % w < w / 2 {
-                    100.0
-                } else {
-                    100.0 * (0.5 + hash01(i))
-                }
+                let amplitude = if i % w < 3 * w / 4 { 1.0 } else { 100.0 };
+                100.0 + amplitude * (hash01(i) - 0.5)
             })
             .collect();
         let m = plan(&image, w, h);
@@ -238,9 +302,15 @@ mod tests {
                 .collect();
             px.iter().sum::<f64>() / px.len() as f64
         };
-        let (clean, noisy) = (mean(0..w / 2 - PLAN_RADIUS), mean(w / 2 + PLAN_RADIUS..w));
-        assert!((clean - 1.0).abs() < 1e-12, "clean half: {clean}");
-        assert!(noisy >= 2.0, "noisy half: {noisy} samples per pass");
+        let (clean, noisy) = (
+            mean(0..3 * w / 4 - PLAN_RADIUS),
+            mean(3 * w / 4 + PLAN_RADIUS..w),
+        );
+        assert!((clean - 1.0).abs() < 1e-12, "faint part: {clean}");
+        assert!(
+            (noisy - f64::from(MAX_SAMPLES_PER_PASS)).abs() < 1e-12,
+            "noisy part: {noisy} samples per pass"
+        );
     }
 
     #[test]
@@ -266,7 +336,10 @@ mod tests {
     #[test]
     fn window_sums_match_a_direct_computation() {
         let (w, h) = (23, 17);
-        let image: Vec<f32> = (0..w * h).map(|i| 10.0 * hash01(i).powi(3)).collect();
+        // Noise growing fourfold from left to right.
+        let image: Vec<f32> = (0..w * h)
+            .map(|i| 10.0 * (1.0 + 3.0 * (i % w) as f32 / w as f32) * hash01(i).powi(3))
+            .collect();
         let r = PLAN_RADIUS as i64;
         let window = |i: usize| {
             let (x, y) = ((i % w) as i64, (i / w) as i64);
@@ -292,11 +365,14 @@ mod tests {
         let mut checked = 0;
         for i in 0..w * h {
             let near = window(i);
-            let far: Vec<f64> = (0..w * h)
+            let mut far: Vec<u16> = (0..w * h)
                 .filter(|j| !near.contains(j))
-                .map(|j| spread[j])
+                .map(|j| spread_bin(spread[j] as f32))
+                .filter(|&b| b > 0)
                 .collect();
-            let exact = PLAN_SCALE * spread[i] / (far.iter().sum::<f64>() / far.len() as f64);
+            far.sort_unstable();
+            let median = bin_centre(usize::from(far[(far.len() - 1) / 2]));
+            let exact = PLAN_SCALE * spread[i] / median;
             // Rounding ties may fall either way by floating-point error.
             if (exact.fract() - 0.5).abs() > 1e-4 {
                 assert_eq!(f64::from(m[i]), exact.round().clamp(1.0, 8.0), "pixel {i}");
