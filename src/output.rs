@@ -19,6 +19,8 @@
 //!   (e.g. `skyrender:scene` holding the scene TOML, `skyrender:spp` holding `"64"`). EXR
 //!   strings are byte strings; values are stored as their UTF-8 bytes. (The `exr` crate's
 //!   `Text: Display` decodes bytes as Latin-1, so decode `Text::bytes()` as UTF-8 when reading.)
+//! - the header's attributes in byte order of their names, so equal images with equal
+//!   metadata are equal files.
 //!
 //! # Tone curve (PNG output and the preview)
 //!
@@ -55,7 +57,7 @@
 
 use std::collections::HashSet;
 use std::fs::File;
-use std::io::{self, BufWriter, Write};
+use std::io::{self, BufRead, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
 use exr::meta::attribute::Chromaticities;
@@ -252,12 +254,77 @@ pub fn write_exr(
     write_atomically(path, |writer| {
         exr_image
             .write()
-            .to_buffered(writer)
+            .to_buffered(&mut *writer)
             .map_err(|source| OutputError::Exr {
                 path: path.to_path_buf(),
                 source,
-            })
+            })?;
+        writer.flush().map_err(|source| OutputError::Io {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        sort_header_attributes(writer.get_mut()).map_err(|source| OutputError::Io {
+            path: path.to_path_buf(),
+            source,
+        })
     })
+}
+
+/// Rewrites the header of the single-part EXR file in `file` with its
+/// attributes sorted by name. The `exr` crate writes custom attributes in
+/// the order of a `HashMap` with random keys, so the same image came out as
+/// different bytes on every run; sorted, the same scene and seed give the
+/// same file. The header keeps its length, so the offset table after it
+/// stays valid. Multi-part files (not written here) are left alone.
+fn sort_header_attributes(file: &mut File) -> io::Result<()> {
+    /// The version field's multi-part flag (OpenEXR file layout, "Version Field").
+    const MULTI_PART: u32 = 0x1000;
+    let invalid =
+        |what: &str| io::Error::new(io::ErrorKind::InvalidData, format!("EXR header: {what}"));
+    file.seek(SeekFrom::Start(0))?;
+    let mut reader = io::BufReader::new(&mut *file);
+    let mut start = [0u8; 8];
+    reader.read_exact(&mut start)?;
+    if start[..4] != [0x76, 0x2f, 0x31, 0x01] {
+        return Err(invalid("not an OpenEXR file"));
+    }
+    if u32::from_le_bytes([start[4], start[5], start[6], start[7]]) & MULTI_PART != 0 {
+        return Ok(());
+    }
+    // Each attribute: name NUL, type NUL, size (i32, little-endian), value.
+    let mut attributes: Vec<(Vec<u8>, Vec<u8>)> = Vec::new();
+    loop {
+        let mut name = Vec::new();
+        reader.read_until(0, &mut name)?;
+        if name.last() != Some(&0) {
+            return Err(invalid("ends inside an attribute name"));
+        }
+        if name.len() == 1 {
+            break; // the header's terminating NUL
+        }
+        let mut record = name.clone();
+        reader.read_until(0, &mut record)?;
+        let mut size = [0u8; 4];
+        reader.read_exact(&mut size)?;
+        record.extend_from_slice(&size);
+        let size =
+            usize::try_from(i32::from_le_bytes(size)).map_err(|_| invalid("negative size"))?;
+        let value_start = record.len();
+        record.resize(value_start + size, 0);
+        reader.read_exact(&mut record[value_start..])?;
+        attributes.push((name, record));
+    }
+    drop(reader);
+    attributes.sort_by(|a, b| a.0.cmp(&b.0));
+    let mut header = start.to_vec();
+    for (_, record) in attributes {
+        header.extend_from_slice(&record);
+    }
+    header.push(0);
+    file.seek(SeekFrom::Start(0))?;
+    file.write_all(&header)?;
+    file.seek(SeekFrom::End(0))?;
+    Ok(())
 }
 
 /// Writes `image` tone-mapped to 8-bit sRGB PNG, atomically.
@@ -629,6 +696,59 @@ mod tests {
         assert!(error.to_string().contains("out/sky"));
 
         assert!(OutputFormat::from_path(Path::new("sky.exr.tmp")).is_err());
+    }
+
+    #[test]
+    fn equal_images_with_equal_metadata_are_equal_files() {
+        // The exr crate orders custom attributes by a randomly keyed HashMap:
+        // with six of them, unsorted headers differ in most writes.
+        let dir = tempfile::tempdir().unwrap();
+        let image = uniform(5, 3, [0.25, 0.5, 1.0]);
+        let metadata: Vec<(String, String)> = ["f", "b", "e", "a", "d", "c"]
+            .iter()
+            .map(|k| (format!("skyrender:{k}"), format!("value of {k}")))
+            .collect();
+        let paths: Vec<_> = (0..4)
+            .map(|i| dir.path().join(format!("{i}.exr")))
+            .collect();
+        for path in &paths {
+            write_exr(path, &image, &metadata).unwrap();
+        }
+        let first = std::fs::read(&paths[0]).unwrap();
+        for path in &paths[1..] {
+            assert!(std::fs::read(path).unwrap() == first, "{}", path.display());
+        }
+        // Still a valid file with every attribute, now in name order.
+        let read = exr::prelude::read_first_rgba_layer_from_file(
+            &paths[0],
+            |_, _| (),
+            |(), _, (_, _, _, _): (f32, f32, f32, f32)| (),
+        )
+        .unwrap();
+        for (key, value) in &metadata {
+            let found = &read.layer_data.attributes.other[&Text::from(key.as_str())];
+            assert!(matches!(found, AttributeValue::Text(t) if t.to_string() == *value));
+        }
+        let names: Vec<usize> = metadata
+            .iter()
+            .map(|(k, _)| {
+                first
+                    .windows(k.len())
+                    .position(|w| w == k.as_bytes())
+                    .unwrap()
+            })
+            .collect();
+        let mut sorted_keys: Vec<&String> = metadata.iter().map(|(k, _)| k).collect();
+        sorted_keys.sort();
+        let mut by_position: Vec<(usize, &String)> = names
+            .into_iter()
+            .zip(metadata.iter().map(|(k, _)| k))
+            .collect();
+        by_position.sort();
+        assert_eq!(
+            by_position.into_iter().map(|(_, k)| k).collect::<Vec<_>>(),
+            sorted_keys
+        );
     }
 
     #[test]
