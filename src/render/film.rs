@@ -25,9 +25,10 @@ pub const MAX_SAMPLES_PER_PASS: u8 = 8;
 /// pixels (a 9×9 window without its centre).
 const PLAN_RADIUS: usize = 4;
 /// Samples per pass ≈ this × (neighbourhood spread / median spread), clamped
-/// to 1–[`MAX_SAMPLES_PER_PASS`]. Measured on the four benchmark scenes
-/// (`BENCHMARKS.md`, session 9).
-const PLAN_SCALE: f64 = 1.0;
+/// to 1–[`MAX_SAMPLES_PER_PASS`]. 1.0 and 1.5 measured alike on the four
+/// benchmark scenes (time ratios of uniform sampling 1.15–1.41 and
+/// 1.14–1.50, `BENCHMARKS.md`, session 9); 1.5 won at midday and twilight.
+const PLAN_SCALE: f64 = 1.5;
 /// Resolution of the spreads' histogram, bins per octave (the median is
 /// taken to within 2^(1/8), 9 %: plenty for a sample count).
 const BINS_PER_OCTAVE: f32 = 8.0;
@@ -306,7 +307,11 @@ mod tests {
             mean(0..3 * w / 4 - PLAN_RADIUS),
             mean(3 * w / 4 + PLAN_RADIUS..w),
         );
-        assert!((clean - 1.0).abs() < 1e-12, "faint part: {clean}");
+        // About the median: PLAN_SCALE samples, rounded either way.
+        assert!(
+            (1.0..=PLAN_SCALE.ceil()).contains(&clean),
+            "faint part: {clean}"
+        );
         assert!(
             (noisy - f64::from(MAX_SAMPLES_PER_PASS)).abs() < 1e-12,
             "noisy part: {noisy} samples per pass"
