@@ -173,6 +173,22 @@ impl SceneError {
     }
 }
 
+/// A TOML error as one line: where (line and column) and what, e.g.
+/// "line 2, column 8: unknown variant `ortho`, expected one of `perspective`,
+/// `equirect`, `fisheye`" (the toml crate's own display spans several lines).
+fn toml_error(text: &str, error: &toml::de::Error) -> SceneError {
+    let place = error.span().map(|span| {
+        let before = &text[..span.start.min(text.len())];
+        let line = before.matches('\n').count() + 1;
+        let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
+        format!("line {line}, column {column}: ")
+    });
+    SceneError::new(
+        "scene",
+        format!("{}{}", place.unwrap_or_default(), error.message().trim()),
+    )
+}
+
 /// A count within `lo..=hi`, or an error naming `parameter` and the range.
 fn check_count(parameter: &str, value: usize, lo: usize, hi: usize) -> Result<(), SceneError> {
     if (lo..=hi).contains(&value) {
@@ -225,12 +241,19 @@ impl Scene {
     }
 
     pub fn from_toml(text: &str) -> Result<Self, SceneError> {
-        let scene: Self = toml::from_str(text).map_err(|e| {
-            SceneError::new(
-                "scene",
-                e.to_string().lines().next().unwrap_or_default().to_owned(),
-            )
-        })?;
+        let table: toml::Table = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
+        // A fisheye's field of view defaults to 180° (the whole sky), a
+        // perspective camera's to 90°: the shared field's default is the
+        // perspective one, so fill in the fisheye's where the file is silent.
+        let camera = table.get("camera").and_then(toml::Value::as_table);
+        let fisheye_without_fov = camera.is_some_and(|c| {
+            c.get("kind").and_then(toml::Value::as_str) == Some("fisheye")
+                && !c.contains_key("fov_deg")
+        });
+        let mut scene: Self = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
+        if fisheye_without_fov {
+            scene.camera.fov_deg = 180.0;
+        }
         scene.validate()?;
         Ok(scene)
     }
@@ -349,6 +372,33 @@ mod tests {
         let e = Scene::preset("noon").unwrap_err();
         assert!(e.to_string().contains("midday"), "{e}");
         assert!(Scene::from_toml("[sun]\nelevation = 3").is_err());
+    }
+
+    #[test]
+    fn toml_errors_say_where_and_what_on_one_line() {
+        for (toml, want) in [
+            (
+                "[camera]\nkind = \"ortho\"",
+                "line 2, column 8: unknown variant `ortho`, expected one of `perspective`, `equirect`, `fisheye`",
+            ),
+            ("[sun]\nelevatoin_deg = 3", "line 2, column 1: unknown field `elevatoin_deg`"),
+            ("[render]\nspp = -3", "line 2, column 7:"),
+            ("[sun]\nelevation_deg = \"x\"", "line 2, column 17:"),
+        ] {
+            let e = Scene::from_toml(toml).unwrap_err();
+            assert_eq!(e.parameter, "scene");
+            let text = e.to_string();
+            assert!(text.contains(want) && !text.contains('\n'), "{toml}: {text}");
+        }
+    }
+
+    #[test]
+    fn a_fisheye_sees_the_whole_sky_unless_told_otherwise() {
+        let fov = |toml: &str| Scene::from_toml(toml).unwrap().camera.fov_deg;
+        assert_eq!(fov("[camera]\nkind = \"fisheye\""), 180.0);
+        assert_eq!(fov("[camera]\nkind = \"fisheye\"\nfov_deg = 120.0"), 120.0);
+        assert_eq!(fov("[camera]\nkind = \"perspective\""), 90.0);
+        assert_eq!(fov(""), 90.0);
     }
 
     #[test]

@@ -317,3 +317,43 @@ fn a_reader_that_closes_the_pipe_early_ends_the_program_quietly() {
     assert!(!stderr.contains("panicked"), "{stderr}");
     assert!(out.status.success(), "{:?}: {stderr}", out.status);
 }
+
+#[test]
+fn an_observer_exactly_at_the_top_of_the_atmosphere_renders() {
+    // Rays up and across from the top itself have no span; rounding once
+    // gave them one of negative length, and the sampler panicked on it.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("top.exr");
+    for preset in ["midday", "twilight"] {
+        let out = skyrender(&[
+            "render",
+            "--preset",
+            preset,
+            "--altitude",
+            "100000",
+            "--width",
+            "24",
+            "--height",
+            "12",
+            "--spp",
+            "2",
+            "-o",
+            path.to_str().unwrap(),
+        ]);
+        assert!(out.status.success(), "{preset}: {}", stderr(&out));
+    }
+    let out = skyrender(&[
+        "radiance",
+        "--altitude",
+        "100000",
+        "--view-zenith",
+        "89",
+        "--view-azimuth",
+        "180",
+        "--wavelength",
+        "550",
+        "--samples",
+        "500",
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+}

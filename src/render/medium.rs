@@ -661,9 +661,15 @@ impl Medium {
                 hits_ground: true,
             });
         }
+        // From the top itself, looking up or across, the ray leaves at once:
+        // t_exit = −b + |b| = 0 up to rounding, which may fall below t_enter.
+        let t_exit = -b + half_chord_top;
+        if t_exit <= t_enter {
+            return None;
+        }
         Some(Span {
             t_enter,
-            t_exit: -b + half_chord_top,
+            t_exit,
             hits_ground: false,
         })
     }
@@ -1333,6 +1339,19 @@ mod tests {
         let s = medium.span(space, -DVec3::Z).unwrap();
         assert!(s.hits_ground && (s.t_enter - 300_000.0).abs() < 1e-3);
         assert!(medium.span(space, DVec3::X).is_none());
+        // From the top itself: up and across the ray leaves at once (no
+        // span, not one of negative length from rounding); down it enters.
+        let top = DVec3::new(0.0, 0.0, medium.top_radius_m);
+        for el_deg in [90.0_f64, 30.0, 1.0, 0.01, 0.0] {
+            let el = el_deg.to_radians();
+            let dir = DVec3::new(el.cos(), 0.0, el.sin());
+            assert!(medium.span(top, dir).is_none(), "elevation {el_deg}°");
+        }
+        let el = (-1.0_f64).to_radians();
+        let down = medium
+            .span(top, DVec3::new(el.cos(), 0.0, el.sin()))
+            .unwrap();
+        assert!(down.t_exit > down.t_enter);
     }
 
     #[test]
