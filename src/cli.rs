@@ -475,7 +475,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
                 };
                 outln!("# view zenith {view_zenith} deg, azimuth {view_azimuth} deg, {samples} paths per wavelength");
                 outln!("# wavelength_nm  radiance ({unit})  std_error");
-                for s in spectrum {
+                for s in &spectrum {
                     outln!(
                         "{:>8.2}  {:.6e}  {:.3e}",
                         s.wavelength_nm,
@@ -483,6 +483,8 @@ pub fn run(command: Command) -> Result<(), CliError> {
                         s.std_error
                     );
                 }
+                let discarded: u64 = spectrum.iter().map(|s| s.discarded).sum();
+                outln!("# {discarded} samples discarded (not finite and non-negative)");
             }
             Ok(())
         }

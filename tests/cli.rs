@@ -130,6 +130,15 @@ fn bad_inputs_get_one_line_errors_and_no_file() {
             "scene",
         ),
         (vec!["render", "--threads", "0", "-o", o], "threads"),
+        // Rejected by the argument parser itself, still on one line.
+        (vec!["render", "--width", "nan", "-o", o], "--width"),
+        (vec!["render", "--spp", "2.5", "-o", o], "--spp"),
+        (vec!["render", "--seed=-1", "-o", o], "--seed"),
+        (
+            vec!["render", "--preset", "midday", "--scene", "s.toml", "-o", o],
+            "--scene",
+        ),
+        (vec!["render", "--no-such-flag", "-o", o], "--no-such-flag"),
     ];
     for (args, needle) in cases {
         assert_rejected(&args, needle, Some(&out));
@@ -195,6 +204,7 @@ fn bad_inputs_get_one_line_errors_and_no_file() {
         None,
     );
     assert_rejected(&["atmosphere", "--altitude", "-10"], "altitude", None);
+    assert_rejected(&["radiance", "--view-azimuth", "0"], "--view-zenith", None);
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),
         1,
@@ -228,6 +238,7 @@ fn radiance_json_has_the_documented_keys() {
         assert!(s["radiance"].as_f64().unwrap() > 0.0);
         assert!(s["std_error"].as_f64().unwrap() >= 0.0);
         assert!(s["wavelength_nm"].as_f64().is_some());
+        assert_eq!(s["discarded"], 0);
     }
     // Rayleigh blue: more radiance at 400 than at 700 nm.
     assert!(spectrum[0]["radiance"].as_f64() > spectrum[2]["radiance"].as_f64());

@@ -85,6 +85,9 @@ pub struct SpectralEstimate {
     pub wavelength_nm: f64,
     pub radiance: f64,
     pub std_error: f64,
+    /// Paths whose estimate was not finite and non-negative: counted as 0,
+    /// like a discarded pixel sample.
+    pub discarded: u64,
 }
 
 impl Renderer {
@@ -364,12 +367,18 @@ impl Renderer {
                 );
                 let mut sum = [0.0; LANES];
                 let mut sum2 = [0.0; LANES];
+                let mut discarded = [0u64; LANES];
                 for s in 0..samples {
                     let mut rng =
                         Rng::for_sample(self.scene.render.seed, u64::from(s), chunk_index as u64);
                     let l = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
                     for j in 0..LANES {
-                        let v = if l[j].is_finite() { l[j] } else { 0.0 };
+                        let v = if l[j].is_finite() && l[j] >= 0.0 {
+                            l[j]
+                        } else {
+                            discarded[j] += 1;
+                            0.0
+                        };
                         sum[j] += v;
                         sum2[j] += v * v;
                     }
@@ -385,6 +394,7 @@ impl Renderer {
                             wavelength_nm: w,
                             radiance: mean,
                             std_error: (var / n).sqrt(),
+                            discarded: discarded[j],
                         }
                     })
                     .collect::<Vec<_>>()
