@@ -224,7 +224,7 @@ impl SceneArgs {
             scene.render.height = count("height", v, 65_536)?;
         }
         if let Some(v) = self.spp {
-            scene.render.spp = count("spp", v, 1 << 24)?;
+            scene.render.spp = count("spp", v, i64::from(crate::scene::MAX_SPP))?;
         }
         if let Some(v) = self.seed {
             scene.render.seed = v;

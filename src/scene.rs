@@ -107,6 +107,10 @@ impl Default for CameraParams {
     }
 }
 
+/// Most samples per pixel (passes) a scene may ask for, 2²⁴: about where the
+/// film's f32 sums (24-bit significand) stop registering one more sample.
+pub const MAX_SPP: u32 = 1 << 24;
+
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RenderParams {
@@ -317,12 +321,7 @@ impl Scene {
                 format!("{} is outside the valid range 1 to 65536", r.height),
             ));
         }
-        if r.spp == 0 {
-            return Err(SceneError::new(
-                "spp",
-                "0 is outside the valid range 1 to 4294967295",
-            ));
-        }
+        check_count("spp", r.spp as usize, 1, MAX_SPP as usize)?;
         if let Some(ev) = r.exposure_ev {
             check_range("exposure (EV)", ev, -50.0, 50.0)?;
         }
@@ -372,6 +371,8 @@ mod tests {
         let e = Scene::preset("noon").unwrap_err();
         assert!(e.to_string().contains("midday"), "{e}");
         assert!(Scene::from_toml("[sun]\nelevation = 3").is_err());
+        let e = Scene::from_toml("[render]\nspp = 16777217").unwrap_err();
+        assert!(e.to_string().contains("1 to 16777216"), "{e}");
     }
 
     #[test]
