@@ -101,6 +101,67 @@ fn exr_round_trip_preserves_pixels_and_attributes() {
     }
 }
 
+/// Runs one of the OpenEXR reference library's tools (Debian's `openexr`
+/// package, which `.ci/run` installs); its stdout.
+fn openexr_tool(tool: &str, args: &[&Path]) -> String {
+    let out = std::process::Command::new(tool)
+        .args(args)
+        .output()
+        .unwrap_or_else(|e| {
+            panic!("{tool} not runnable ({e}): install Debian's openexr tools (apt-get install openexr)")
+        });
+    assert!(
+        out.status.success(),
+        "{tool} {args:?}: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8_lossy(&out.stdout).into_owned()
+}
+
+#[test]
+fn the_reference_openexr_library_reads_our_files() {
+    // Another reader than the `exr` crate that wrote the file: the OpenEXR
+    // library itself. `exrheader` reads the header; `exrmaketiled` decodes
+    // every pixel and writes them out again as a tiled file, which must hold
+    // the same values.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("sky.exr");
+    let image = test_image(7, 5);
+    write_exr(&path, &image, &metadata()).unwrap();
+
+    let header = openexr_tool("exrheader", &[&path]);
+    for line in [
+        "R, 32-bit floating-point",
+        "G, 32-bit floating-point",
+        "B, 32-bit floating-point",
+        "red   (0.64 0.33)",
+        "white (0.3127 0.329)",
+        "whiteLuminance (type float): 1",
+    ] {
+        assert!(header.contains(line), "exrheader lacks '{line}':\n{header}");
+    }
+    for (key, value) in metadata() {
+        let attribute = format!("{key} (type string): \"{value}\"");
+        assert!(
+            header.contains(&attribute),
+            "exrheader lacks {attribute}:\n{header}"
+        );
+    }
+
+    let tiled = dir.path().join("tiled.exr");
+    openexr_tool("exrmaketiled", &[&path, &tiled]);
+    assert!(openexr_tool("exrheader", &[&tiled]).contains("tiles (type tiledesc)"));
+    let read = exr::prelude::read_first_rgba_layer_from_file(
+        &tiled,
+        |resolution, _| vec![[f32::NAN; 3]; resolution.width() * resolution.height()],
+        |pixels: &mut Vec<[f32; 3]>, position, (r, g, b, _): (f32, f32, f32, f32)| {
+            pixels[position.y() * 7 + position.x()] = [r, g, b];
+        },
+    )
+    .unwrap();
+    assert_eq!(read.layer_data.channel_data.pixels, image.pixels);
+}
+
 #[test]
 fn png_round_trip_has_right_size_and_tone_mapping() {
     let dir = tempfile::tempdir().unwrap();
