@@ -200,10 +200,15 @@ impl SceneArgs {
             scene.observer.altitude_m = v;
         }
         if let Some(name) = &self.camera {
-            scene.camera.kind = CameraKind::parse(name)?;
-            if scene.camera.kind == CameraKind::Fisheye && self.fov.is_none() {
-                scene.camera.fov_deg = 180.0;
+            let kind = CameraKind::parse(name)?;
+            // A fisheye's field of view (180° by default) means nothing to
+            // the other projections and vice versa: switching to or from a
+            // fisheye without --fov takes the new kind's default.
+            let fisheye = [kind, scene.camera.kind].contains(&CameraKind::Fisheye);
+            if self.fov.is_none() && kind != scene.camera.kind && fisheye {
+                scene.camera.fov_deg = kind.default_fov_deg();
             }
+            scene.camera.kind = kind;
         }
         if let Some(v) = self.fov {
             scene.camera.fov_deg = v;

@@ -1,15 +1,16 @@
 //! A small, fast, seedable random number generator (PCG32, O'Neill 2014),
 //! with an optional low-discrepancy prefix for pixel samples.
 //!
-//! Every pixel sample owns a generator seeded from (scene seed, pass, pixel),
-//! so images do not depend on how rayon schedules the work.
+//! Every pixel sample owns a generator seeded from (scene seed, the pixel's
+//! sample number, pixel), so images do not depend on how rayon schedules the
+//! work.
 //!
 //! **Low-discrepancy prefix** ([`Rng::with_sobol_prefix`]): the first
 //! [`SOBOL_DIMENSIONS`] uniforms of a pixel sample are the coordinates of
-//! one point per pass of an Owen-scrambled Sobol sequence (Burley 2020,
+//! one point per sample of an Owen-scrambled Sobol sequence (Burley 2020,
 //! "Practical Hash-based Owen Scrambling", JCGT 9(4); the `sobol_burley`
 //! crate), scrambled per pixel. One scrambled point is uniform over the unit cube (Owen 1995),
-//! so every sample, and the pixel mean, stays unbiased; across the passes of
+//! so every sample, and the pixel mean, stays unbiased; across the samples of
 //! a pixel the points are stratified, so the first decisions of a path (the
 //! pixel position, the camera ray's scattering points and the first
 //! scattering directions) cover their domain evenly and the noise they cause
@@ -71,9 +72,9 @@ impl Rng {
         rng
     }
 
-    /// Generator for sample `pass` of pixel `pixel` under `seed`.
-    pub fn for_sample(seed: u64, pass: u64, pixel: u64) -> Self {
-        Self::new(mix64(seed ^ mix64(pass)), pixel)
+    /// Generator for sample number `sample` of pixel `pixel` under `seed`.
+    pub fn for_sample(seed: u64, sample: u64, pixel: u64) -> Self {
+        Self::new(mix64(seed ^ mix64(sample)), pixel)
     }
 
     /// This generator with a low-discrepancy prefix: its next

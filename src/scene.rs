@@ -68,6 +68,15 @@ impl CameraKind {
         }
     }
 
+    /// The field of view a camera of this kind gets when none is given:
+    /// 180° for a fisheye (the whole sky), 90° otherwise.
+    pub fn default_fov_deg(self) -> f64 {
+        match self {
+            Self::Fisheye => 180.0,
+            Self::Perspective | Self::Equirect => 90.0,
+        }
+    }
+
     pub fn parse(name: &str) -> Result<Self, SceneError> {
         Self::ALL
             .into_iter()
@@ -107,9 +116,10 @@ impl Default for CameraParams {
     }
 }
 
-/// Most samples per pixel (passes) a scene may ask for, 2²⁴: about where the
-/// film's f32 sums (24-bit significand) stop registering one more sample.
-pub const MAX_SPP: u32 = 1 << 24;
+/// Most samples per pixel (passes) a scene may ask for, 2²¹: with up to 8
+/// samples per pass (adaptive sampling) that is 2²⁴ samples, about where the
+/// film's f32 sums (24-bit significand) stop registering one more.
+pub const MAX_SPP: u32 = 1 << 21;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -182,7 +192,7 @@ impl SceneError {
 /// `equirect`, `fisheye`" (the toml crate's own display spans several lines).
 fn toml_error(text: &str, error: &toml::de::Error) -> SceneError {
     let place = error.span().map(|span| {
-        let before = &text[..span.start.min(text.len())];
+        let before = text.get(..span.start).unwrap_or(text);
         let line = before.matches('\n').count() + 1;
         let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
         format!("line {line}, column {column}: ")
@@ -256,7 +266,7 @@ impl Scene {
         });
         let mut scene: Self = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         if fisheye_without_fov {
-            scene.camera.fov_deg = 180.0;
+            scene.camera.fov_deg = CameraKind::Fisheye.default_fov_deg();
         }
         scene.validate()?;
         Ok(scene)
@@ -371,8 +381,8 @@ mod tests {
         let e = Scene::preset("noon").unwrap_err();
         assert!(e.to_string().contains("midday"), "{e}");
         assert!(Scene::from_toml("[sun]\nelevation = 3").is_err());
-        let e = Scene::from_toml("[render]\nspp = 16777217").unwrap_err();
-        assert!(e.to_string().contains("1 to 16777216"), "{e}");
+        let e = Scene::from_toml("[render]\nspp = 2097153").unwrap_err();
+        assert!(e.to_string().contains("1 to 2097152"), "{e}");
     }
 
     #[test]

@@ -368,3 +368,36 @@ fn an_observer_exactly_at_the_top_of_the_atmosphere_renders() {
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
 }
+
+#[test]
+fn switching_a_fisheye_scene_to_perspective_takes_the_perspective_default() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("fisheye.toml");
+    std::fs::write(&scene, "[camera]\nkind = \"fisheye\"\n").unwrap();
+    let path = dir.path().join("p.exr");
+    let out = skyrender(&[
+        "render",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--camera",
+        "perspective",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--spp",
+        "1",
+        "-o",
+        path.to_str().unwrap(),
+    ]);
+    assert!(out.status.success(), "{}", stderr(&out));
+    let image = exr::prelude::read_all_data_from_file(&path).unwrap();
+    let scene_text = image.layer_data[0]
+        .attributes
+        .other
+        .iter()
+        .find(|(k, _)| k.as_slice() == b"skyrender:scene")
+        .map(|(_, v)| format!("{v:?}"))
+        .unwrap();
+    assert!(scene_text.contains("fov_deg = 90.0"), "{scene_text}");
+}

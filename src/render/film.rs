@@ -1,18 +1,20 @@
 //! The film: per-pixel weighted sums of XYZ samples, filled one pass at a
 //! time and readable at any moment. Rows record how many passes they hold
 //! and their total weight, so a pass interrupted half-way still reads back
-//! coherently. Each sample's weight is fixed before it is drawn (by its
-//! pass and, from the adaptive plan on, by nothing else), so the weighted
-//! mean is unbiased.
+//! coherently. A pixel's value is Σ wₛ xₛ / Σ wₛ over its samples, each
+//! weight set by the sample's pass alone (1/8 for the draft, 1 otherwise)
+//! and the number of samples by nothing the pixel's own samples influence,
+//! so the mean is unbiased.
 //!
-//! **Adaptive sampling.** After the first full pass the film can be given a
-//! plan ([`Film::plan_samples`]): every later pass takes 1–8 samples per
-//! pixel instead of one, more where the image was noisy. The plan of a pixel
-//! is read from its *neighbours'* values only (leave-one-out), which are
-//! independent of the pixel's own samples, so the number of samples a pixel
-//! gets carries no information about their values and its mean stays
-//! unbiased — unlike adaptive schemes that stop sampling a pixel once its
-//! own estimate looks converged.
+//! **Adaptive sampling.** After the first full pass the renderer gives the
+//! film a plan (`Film::plan_samples`): every later pass takes 1–8 samples
+//! per pixel instead of one, more where the image was noisy. The plan of a
+//! pixel is read from its *neighbours'* values only (leave-one-out), which
+//! are independent of the pixel's own samples (every pixel has its own
+//! random streams), so the number of samples a pixel gets carries no
+//! information about their values and its mean stays unbiased — unlike
+//! adaptive schemes that stop sampling a pixel once its own estimate looks
+//! converged.
 
 use rayon::prelude::*;
 
@@ -27,10 +29,11 @@ const PLAN_RADIUS: usize = 4;
 /// Samples per pass ≈ this × (neighbourhood spread / median spread), clamped
 /// to 1–[`MAX_SAMPLES_PER_PASS`]. 1.0 and 1.5 measured alike on the four
 /// benchmark scenes (time ratios of uniform sampling 1.15–1.41 and
-/// 1.14–1.50, `BENCHMARKS.md`, session 9); 1.5 won at midday and twilight.
+/// 1.14–1.50, `BENCHMARKS.md`, "Session 9"); 1.5 won at midday and twilight.
 const PLAN_SCALE: f64 = 1.5;
-/// Resolution of the spreads' histogram, bins per octave (the median is
-/// taken to within 2^(1/8), 9 %: plenty for a sample count).
+/// Resolution of the spreads' histogram, bins per octave: the median is the
+/// geometric centre of the lower median's bin, within 2^(1/16) (4.4 %) of
+/// it — plenty for a sample count.
 const BINS_PER_OCTAVE: f32 = 8.0;
 /// log₂ of the smallest positive f32 is −149: bin = ⌊(log₂ σ + 150) × 8⌋.
 const LOG2_OFFSET: f32 = 150.0;
@@ -127,7 +130,12 @@ impl Film {
     /// pixel itself. Where the image is flat and clean that is small; where it
     /// is noisy or bright and structured (the aureole, a twilight glow), large
     /// — the absolute variance the mean of a pixel carries scales with both.
-    pub fn plan_samples(&mut self) {
+    /// Once only: a plan changed later would re-weight the passes before it
+    /// (does nothing on a planned film).
+    pub(crate) fn plan_samples(&mut self) {
+        if self.is_planned() {
+            return;
+        }
         let luminance: Vec<f32> = (0..self.height)
             .flat_map(|y| (0..self.width).map(move |x| (x, y)))
             .map(|(x, y)| self.xyz(x, y)[1] as f32)
@@ -146,15 +154,7 @@ impl Film {
 /// sun's disc or one firefly in a window makes its σⱼ millions of times the
 /// rest, and a mean would then give every other pixel one sample.
 fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
-    let mut spread = vec![0.0f32; width * height];
-    for_each_window(luminance, width, height, |i, sum, sum_sq, n| {
-        let own = f64::from(luminance[i]);
-        let (s, s2, n) = (sum - own, sum_sq - own * own, (n - 1) as f64);
-        if n >= 2.0 {
-            let mean = s / n;
-            spread[i] = ((s2 / n - mean * mean).max(0.0) * n / (n - 1.0)).sqrt() as f32;
-        }
-    });
+    let spread = spreads(luminance, width, height);
     let bins: Vec<u16> = spread.iter().map(|&s| spread_bin(s)).collect();
     // cumulative[b] = positive spreads in bins ≤ b.
     let mut cumulative = vec![0u32; BINS];
@@ -203,12 +203,47 @@ fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
                     lo = mid + 1;
                 }
             }
-            let median = bin_centre(lo);
-            let samples = PLAN_SCALE * f64::from(spread[y * width + x]) / median;
-            *m = samples.round().clamp(1.0, f64::from(MAX_SAMPLES_PER_PASS)) as u8;
+            let samples = PLAN_SCALE * f64::from(spread[y * width + x]) / bin_centre(lo);
+            if samples.is_finite() {
+                *m = samples.round().clamp(1.0, f64::from(MAX_SAMPLES_PER_PASS)) as u8;
+            }
         }
     });
     plan
+}
+
+/// The standard deviation σᵢ of the luminance over each pixel's window of
+/// (2R+1)² pixels, R = [`PLAN_RADIUS`], clipped at the borders, *without*
+/// the pixel itself (0 with fewer than two others). Each window is read
+/// afresh, its centre skipped: pixel i's value enters no sum of σᵢ, not even
+/// through rounding (sliding sums that add and later subtract it would keep
+/// a trace of it; so would subtracting it from a total).
+fn spreads(luminance: &[f32], width: usize, height: usize) -> Vec<f32> {
+    let r = PLAN_RADIUS;
+    let mut spread = vec![0.0f32; width * height];
+    spread
+        .par_chunks_mut(width)
+        .enumerate()
+        .for_each(|(y, row)| {
+            let rows = y.saturating_sub(r)..(y + r + 1).min(height);
+            for (x, spread) in row.iter_mut().enumerate() {
+                let columns = x.saturating_sub(r)..(x + r + 1).min(width);
+                let others = || {
+                    rows.clone()
+                        .flat_map(|yy| columns.clone().map(move |xx| (xx, yy)))
+                        .filter(|&p| p != (x, y))
+                        .map(|(xx, yy)| f64::from(luminance[yy * width + xx]))
+                };
+                let n = others().count() as f64;
+                if n < 2.0 {
+                    continue;
+                }
+                let mean = others().sum::<f64>() / n;
+                let variance = others().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0);
+                *spread = variance.sqrt() as f32;
+            }
+        });
+    spread
 }
 
 /// Histogram bin of a spread: 0 for zero (or non-finite), else its log₂
@@ -224,45 +259,6 @@ fn spread_bin(spread: f32) -> u16 {
 /// The geometric centre of bin `b`'s spreads.
 fn bin_centre(b: usize) -> f64 {
     ((b as f64 + 0.5) / f64::from(BINS_PER_OCTAVE) - f64::from(LOG2_OFFSET)).exp2()
-}
-
-/// Calls `f(i, Σ v, Σ v², n)` for every pixel i of a `width`×`height` image
-/// (row-major) over the n values in its window of (2R+1)² pixels, R =
-/// [`PLAN_RADIUS`], clipped at the borders. Runs a sliding window over
-/// per-column sums (f64), so memory stays O(width) however large the image.
-fn for_each_window(
-    values: &[f32],
-    width: usize,
-    height: usize,
-    mut f: impl FnMut(usize, f64, f64, usize),
-) {
-    let r = PLAN_RADIUS;
-    let mut col_sum = vec![0.0f64; width];
-    let mut col_sq = vec![0.0f64; width];
-    let (mut top, mut bottom) = (0usize, 0usize); // window rows [top, bottom)
-    let update = |row: usize, sign: f64, col_sum: &mut [f64], col_sq: &mut [f64]| {
-        for (x, &v) in values[row * width..(row + 1) * width].iter().enumerate() {
-            let v = f64::from(v);
-            col_sum[x] += sign * v;
-            col_sq[x] += sign * v * v;
-        }
-    };
-    for y in 0..height {
-        while bottom < (y + r + 1).min(height) {
-            update(bottom, 1.0, &mut col_sum, &mut col_sq);
-            bottom += 1;
-        }
-        while top < y.saturating_sub(r) {
-            update(top, -1.0, &mut col_sum, &mut col_sq);
-            top += 1;
-        }
-        for x in 0..width {
-            let (x0, x1) = (x.saturating_sub(r), (x + r + 1).min(width));
-            let sum = col_sum[x0..x1].iter().sum();
-            let sum_sq = col_sq[x0..x1].iter().sum();
-            f(y * width + x, sum, sum_sq, (bottom - top) * (x1 - x0));
-        }
-    }
 }
 
 #[cfg(test)]
@@ -321,21 +317,65 @@ mod tests {
     #[test]
     fn a_pixels_plan_ignores_its_own_value() {
         // The plan of pixel i must not depend on pixel i's samples (that is
-        // what keeps its mean unbiased); its neighbours' plans may.
+        // what keeps its mean unbiased): its own spread and those of the
+        // pixels outside its window — all the plan reads besides integer
+        // counts — stay bit for bit the same whatever its value, and so does
+        // its plan; its neighbours' plans may change.
         let (w, h) = (30, 20);
         let image: Vec<f32> = (0..w * h).map(|i| 50.0 + 30.0 * hash01(i)).collect();
-        let before = plan(&image, w, h);
+        let (spread, m) = (spreads(&image, w, h), plan(&image, w, h));
+        let r = PLAN_RADIUS;
         for i in [0, 7 * w + 11, w * h - 1, 3 * w, 12 * w + 29] {
-            for v in [0.0, 1e6] {
+            for v in [0.0, 1e6, 1e9, f32::MAX] {
                 let mut changed = image.clone();
                 changed[i] = v;
-                let after = plan(&changed, w, h);
-                assert_eq!(after[i], before[i], "pixel {i} set to {v}");
+                let after = spreads(&changed, w, h);
+                let far = |j: usize| (i % w).abs_diff(j % w) > r || (i / w).abs_diff(j / w) > r;
+                for j in (0..w * h).filter(|&j| j == i || far(j)) {
+                    assert_eq!(
+                        after[j].to_bits(),
+                        spread[j].to_bits(),
+                        "pixel {i} = {v}: σ of {j}"
+                    );
+                }
+                assert_eq!(plan(&changed, w, h)[i], m[i], "pixel {i} set to {v}");
             }
         }
         let mut bright = image.clone();
         bright[7 * w + 11] = 1e6;
-        assert_ne!(plan(&bright, w, h)[7 * w + 12], before[7 * w + 12]);
+        assert_ne!(plan(&bright, w, h)[7 * w + 12], m[7 * w + 12]);
+    }
+
+    #[test]
+    fn a_black_band_below_a_bright_one_stays_black() {
+        // Rows of zeros under noisy bright rows: their spreads must be
+        // exactly zero (not the rounding residue of sums that once held the
+        // bright rows), so they stay out of the median and the bright band,
+        // evenly noisy, does not take the cap everywhere.
+        let (w, h) = (30, 30);
+        let image: Vec<f32> = (0..w * h)
+            .map(|i| {
+                // Heavy-tailed (10⁴ to 10⁷): no f64 sum holds their squares exactly.
+                if i / w < 10 {
+                    1e4 / (hash01(i) + 1e-3)
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let spread = spreads(&image, w, h);
+        assert!(spread[(10 + PLAN_RADIUS) * w..].iter().all(|&s| s == 0.0));
+        let m = plan(&image, w, h);
+        for y in 10 + PLAN_RADIUS..h {
+            assert!((0..w).all(|x| m[y * w + x] == 1), "row {y}");
+        }
+        let band = &m[..(10 - PLAN_RADIUS) * w];
+        let capped = band.iter().filter(|&&v| v >= MAX_SAMPLES_PER_PASS).count();
+        assert!(
+            capped < band.len() / 2,
+            "{capped} of {} at the cap",
+            band.len()
+        );
     }
 
     #[test]

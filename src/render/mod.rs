@@ -2,8 +2,9 @@
 //! [`Film`], one pass at a time, in parallel over rows with rayon.
 //!
 //! Determinism: every pixel sample draws from its own generator seeded by
-//! (scene seed, pass, pixel), and each pixel sums its passes in order, so the
-//! image does not depend on the number of threads.
+//! (scene seed, the pixel's sample number, pixel), each pixel sums its
+//! samples in order, and the adaptive plan is a function of the image, so
+//! the image does not depend on the number of threads.
 
 pub mod camera;
 pub mod columns;
@@ -284,6 +285,8 @@ impl Renderer {
         let paths = AtomicU64::new(0);
         let weight = Self::pass_weight(pass);
         let planned = film.is_planned();
+        // The film weighs each planned sample 1 (`Film::xyz`).
+        debug_assert!(!planned || weight == 1.0);
         let plan = &film.plan;
         film.xyz_sum
             .par_chunks_mut(width)
@@ -301,12 +304,12 @@ impl Renderer {
                 }
                 let mut row_paths = 0;
                 for (x, sum) in row.iter_mut().enumerate() {
-                    // Samples planned after pass `ADAPTIVE_FROM_PASS − 1` are
-                    // numbered on from there, consecutively per pixel.
+                    // Planned samples are numbered on from the unplanned
+                    // passes' (one each), consecutively per pixel.
                     let (first, count) = if planned {
                         let m = u64::from(plan[y * width + x]);
-                        let done = u64::from(pass - ADAPTIVE_FROM_PASS);
-                        (u64::from(ADAPTIVE_FROM_PASS) + done * m, m)
+                        let before = u64::from(*passes - *planned_passes);
+                        (before + u64::from(*planned_passes) * m, m)
                     } else {
                         (u64::from(pass), 1)
                     };
