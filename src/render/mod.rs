@@ -37,7 +37,7 @@ use sunlight::CameraDensities;
 const GOLDEN_RATIO_CONJUGATE: f64 = 0.618_033_988_749_894_8;
 
 /// With adaptive sampling on, the pass whose start fixes each pixel's
-/// samples per pass ([`Film::plan_samples`]): after the draft and the first
+/// samples per pass (see [`film`]): after the draft and the first
 /// full pass, so the plan reads one full sample per pixel.
 pub const ADAPTIVE_FROM_PASS: u32 = 2;
 
@@ -264,7 +264,7 @@ impl Renderer {
     /// Add pass number `pass` to `film`: one sample per pixel, or, once the
     /// film is planned, each pixel's planned number of samples. With
     /// adaptive sampling on, the plan is made from the image when pass
-    /// [`ADAPTIVE_FROM_PASS`] starts (see [`Film::plan_samples`]). Stops
+    /// [`ADAPTIVE_FROM_PASS`] starts (see [`film`]). Stops
     /// between rows once `cancelled()` returns true.
     pub fn render_pass(
         &self,
