@@ -77,7 +77,7 @@ impl Film {
         self.row_passes.iter().copied().min().unwrap_or(0)
     }
 
-    /// Whether the adaptive plan (the module documentation) has run.
+    /// Whether the film has its adaptive plan (see the module documentation).
     pub fn is_planned(&self) -> bool {
         !self.plan.is_empty()
     }
