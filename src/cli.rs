@@ -292,12 +292,19 @@ fn check_output_path(path: &Path) -> Result<(), CliError> {
     crate::output::check_writable(path).map_err(|e| CliError::Other(format!("invalid output: {e}")))
 }
 
-/// The header metadata written into EXR files.
-pub fn exr_metadata(scene: &Scene, spp: u32, discarded: u64) -> Vec<(String, String)> {
+/// The header metadata written into EXR files: `skyrender:spp` is the passes
+/// rendered (the least samples a pixel has), `skyrender:samples_per_pixel`
+/// the camera paths per pixel on average (more under adaptive sampling).
+pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<(String, String)> {
+    let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
     vec![
         ("skyrender:version".into(), env!("CARGO_PKG_VERSION").into()),
         ("skyrender:scene".into(), scene.to_toml()),
         ("skyrender:spp".into(), spp.to_string()),
+        (
+            "skyrender:samples_per_pixel".into(),
+            format!("{:.2}", paths as f64 / pixels),
+        ),
         ("skyrender:discarded_samples".into(), discarded.to_string()),
         (
             "skyrender:units".into(),
@@ -322,7 +329,7 @@ pub fn render_to_file(
     output::write_image(
         path,
         &image,
-        &exr_metadata(scene, total, film.discarded),
+        &exr_metadata(scene, total, paths, film.discarded),
         scene.render.exposure_ev.map(|v| v as f32),
     )?;
     Ok((total, paths, film.discarded))

@@ -66,9 +66,19 @@ fn render_writes_an_exr_with_scene_metadata() {
         .map(|(_, v)| format!("{v:?}"))
         .expect("scene attribute");
     assert!(scene.contains("elevation_deg"), "{scene}");
-    assert!(attributes
-        .iter()
-        .any(|(k, _)| k.as_slice() == b"skyrender:spp"));
+    let text = |key: &[u8]| {
+        let (_, value) = attributes
+            .iter()
+            .find(|(k, _)| k.as_slice() == key)
+            .unwrap_or_else(|| panic!("{} missing", String::from_utf8_lossy(key)));
+        match value {
+            exr::meta::attribute::AttributeValue::Text(t) => t.to_string(),
+            other => format!("{other:?}"),
+        }
+    };
+    assert_eq!(text(b"skyrender:spp"), "2");
+    // The draft and one full pass, both one sample per pixel: 2.00.
+    assert_eq!(text(b"skyrender:samples_per_pixel"), "2.00");
     assert!(image.attributes.chromaticities.is_some());
     // Only the EXR is left in the directory (atomic write, no temp files).
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);

@@ -158,7 +158,7 @@ pub fn save_view(
 ) -> Result<(), String> {
     match OutputFormat::from_path(path).map_err(|e| e.to_string())? {
         OutputFormat::Exr => {
-            let metadata = crate::cli::exr_metadata(scene, frame.spp, frame.discarded);
+            let metadata = crate::cli::exr_metadata(scene, frame.spp, frame.paths, frame.discarded);
             output::write_image(path, &frame.image, &metadata, None).map_err(|e| e.to_string())
         }
         OutputFormat::Png => {
@@ -242,6 +242,7 @@ mod tests {
                 pixels: vec![[1.0, 2.0, 3.0], [1e4, 1e4, 1e4]],
             },
             spp: 1,
+            paths: 2,
             elapsed: Duration::ZERO,
             paths_per_second: 0.0,
             discarded: 0,

@@ -21,8 +21,11 @@ pub struct Frame {
     pub epoch: u64,
     /// Linear Rec.709, Y in cd m⁻².
     pub image: RgbImage,
-    /// Samples per pixel in `image`.
+    /// Passes in `image` (the least samples a pixel has).
     pub spp: u32,
+    /// Camera paths in `image` (more than `spp` per pixel under adaptive
+    /// sampling).
+    pub paths: u64,
     pub elapsed: Duration,
     pub paths_per_second: f64,
     pub discarded: u64,
@@ -200,6 +203,7 @@ fn publish(
         epoch,
         image,
         spp,
+        paths,
         elapsed,
         paths_per_second: paths as f64 / elapsed.as_secs_f64().max(1e-9),
         discarded: film.discarded,
