@@ -322,9 +322,7 @@ fn sort_header_attributes(file: &mut File) -> io::Result<()> {
     }
     header.push(0);
     file.seek(SeekFrom::Start(0))?;
-    file.write_all(&header)?;
-    file.seek(SeekFrom::End(0))?;
-    Ok(())
+    file.write_all(&header)
 }
 
 /// Writes `image` tone-mapped to 8-bit sRGB PNG, atomically.

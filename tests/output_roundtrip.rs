@@ -46,12 +46,18 @@ fn dir_entries(dir: &Path) -> Vec<String> {
     names
 }
 
+/// The 7×5 test image with the test metadata, written as `sky.exr` in `dir`.
+fn write_test_exr(dir: &Path) -> (std::path::PathBuf, RgbImage) {
+    let path = dir.join("sky.exr");
+    let image = test_image(7, 5);
+    write_exr(&path, &image, &metadata()).unwrap();
+    (path, image)
+}
+
 #[test]
 fn exr_round_trip_preserves_pixels_and_attributes() {
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sky.exr");
-    let image = test_image(7, 5);
-    write_exr(&path, &image, &metadata()).unwrap();
+    let (path, image) = write_test_exr(dir.path());
 
     let read = exr::prelude::read()
         .no_deep_data()
@@ -125,9 +131,7 @@ fn the_reference_openexr_library_reads_our_files() {
     // every pixel and writes them out again as a tiled file, which must hold
     // the same values.
     let dir = tempfile::tempdir().unwrap();
-    let path = dir.path().join("sky.exr");
-    let image = test_image(7, 5);
-    write_exr(&path, &image, &metadata()).unwrap();
+    let (path, image) = write_test_exr(dir.path());
 
     let header = openexr_tool("exrheader", &[&path]);
     for line in [

@@ -234,7 +234,7 @@ fn spreads(luminance: &[f32], width: usize, height: usize) -> Vec<f32> {
                         .filter(|&p| p != (x, y))
                         .map(|(xx, yy)| f64::from(luminance[yy * width + xx]))
                 };
-                let n = others().count() as f64;
+                let n = (rows.len() * columns.len() - 1) as f64;
                 if n < 2.0 {
                     continue;
                 }

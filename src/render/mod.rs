@@ -410,17 +410,22 @@ impl Renderer {
 mod tests {
     use super::*;
 
+    /// The sunset preset at 24×12, with adaptive sampling on or off.
+    fn small_sunset(adaptive_sampling: bool) -> Renderer {
+        let mut scene = Scene::preset("sunset").unwrap();
+        scene.render.width = 24;
+        scene.render.height = 12;
+        scene.render.adaptive_sampling = adaptive_sampling;
+        Renderer::new(&scene).unwrap()
+    }
+
     #[test]
     fn the_film_weights_every_sample_by_its_pass() {
         // The film's pixel = Σ w·sample / Σ w over the pixel's samples: the
         // draft (pass 0) weighted 1/8, every later sample 1 — with adaptive
         // sampling the m samples a planned pixel takes per pass from pass 2
         // on, numbered consecutively (f32 sums: 1e-5 relative).
-        let mut scene = Scene::preset("sunset").unwrap();
-        scene.render.width = 24;
-        scene.render.height = 12;
-        scene.render.adaptive_sampling = true;
-        let renderer = Renderer::new(&scene).unwrap();
+        let renderer = small_sunset(true);
         let mut film = renderer.new_film();
         for pass in 0..4 {
             renderer.render_pass(&mut film, pass, &|| false);
@@ -468,11 +473,7 @@ mod tests {
 
     #[test]
     fn without_adaptive_sampling_every_pass_takes_one_sample() {
-        let mut scene = Scene::preset("sunset").unwrap();
-        scene.render.width = 24;
-        scene.render.height = 12;
-        scene.render.adaptive_sampling = false;
-        let renderer = Renderer::new(&scene).unwrap();
+        let renderer = small_sunset(false);
         let mut film = renderer.new_film();
         for pass in 0..4 {
             let stats = renderer.render_pass(&mut film, pass, &|| false);
