@@ -244,7 +244,6 @@ mod tests {
             spp: 1,
             paths: 2,
             elapsed: Duration::ZERO,
-            paths_per_second: 0.0,
             discarded: 0,
             finished: true,
         }

@@ -533,8 +533,8 @@ impl SkyApp {
                 self.full_latency.record(now.duration_since(since));
             }
         }
-        if frame.paths_per_second.is_finite() && frame.paths_per_second > 0.0 {
-            self.paths_per_second = 0.5 * (self.paths_per_second + frame.paths_per_second);
+        if frame.paths_per_second().is_finite() && frame.paths_per_second() > 0.0 {
+            self.paths_per_second = 0.5 * (self.paths_per_second + frame.paths_per_second());
         }
         if self.state.display.auto_exposure {
             let (lo, hi) = EXPOSURE_RANGE;
@@ -679,7 +679,7 @@ impl SkyApp {
                         "Samples per pixel accumulated / target (a draft is a quick \
                          low-resolution first look after a change)",
                     );
-                    ui.label(format!("{:.2} M paths/s", f.paths_per_second / 1e6))
+                    ui.label(format!("{:.2} M paths/s", f.paths_per_second() / 1e6))
                         .on_hover_text("Camera paths traced per second");
                     ui.label(format!("{:.1} s", f.elapsed.as_secs_f64()))
                         .on_hover_text("Time since the image started accumulating");

@@ -27,10 +27,16 @@ pub struct Frame {
     /// sampling).
     pub paths: u64,
     pub elapsed: Duration,
-    pub paths_per_second: f64,
     pub discarded: u64,
     /// The target sample count was reached.
     pub finished: bool,
+}
+
+impl Frame {
+    /// Camera paths per second of wall time so far.
+    pub fn paths_per_second(&self) -> f64 {
+        self.paths as f64 / self.elapsed.as_secs_f64().max(1e-9)
+    }
 }
 
 #[derive(Default)]
@@ -205,7 +211,6 @@ fn publish(
         spp,
         paths,
         elapsed,
-        paths_per_second: paths as f64 / elapsed.as_secs_f64().max(1e-9),
         discarded: film.discarded,
         finished: spp >= target,
     }));
