@@ -563,6 +563,12 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("sun_lobe=0.5", |s| {
             s.render.integrator.sun_lobe = 0.5;
         }),
+        ("forced_collision_depth=0", |s| {
+            s.render.integrator.forced_collision_depth = 0;
+        }),
+        ("forced_collision_depth=8", |s| {
+            s.render.integrator.forced_collision_depth = 8;
+        }),
         ("russian_roulette=false", |s| {
             s.render.integrator.russian_roulette = false;
         }),

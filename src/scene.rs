@@ -352,6 +352,12 @@ impl Scene {
         check_count("camera branches", i.camera_branches as usize, 1, branches)?;
         check_range("sun lobe", i.sun_lobe, 0.0, 1.0)?;
         check_range("sky guide", i.sky_guide, 0.0, 1.0)?;
+        check_count(
+            "forced collision depth",
+            i.forced_collision_depth as usize,
+            0,
+            crate::render::integrator::MAX_FORCED_COLLISION_DEPTH as usize,
+        )?;
         Ok(())
     }
 }
@@ -422,6 +428,11 @@ mod tests {
             ("shadow_samples = 9", "shadow samples", "0 to 8"),
             ("sun_lobe = 1.5", "sun lobe", "0 to 1"),
             ("sky_guide = -0.1", "sky guide", "0 to 1"),
+            (
+                "forced_collision_depth = 65",
+                "forced collision depth",
+                "0 to 64",
+            ),
         ] {
             let e = Scene::from_toml(&format!("[render.integrator]\n{toml}")).unwrap_err();
             assert_eq!(e.parameter, parameter);

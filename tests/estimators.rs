@@ -323,6 +323,20 @@ fn estimator_variants_agree_statistically() {
                 ..Default::default()
             },
         ),
+        (
+            "no forced collisions",
+            IntegratorOptions {
+                forced_collision_depth: 0,
+                ..Default::default()
+            },
+        ),
+        (
+            "forced collisions at every depth",
+            IntegratorOptions {
+                forced_collision_depth: 64,
+                ..Default::default()
+            },
+        ),
     ];
     for (name, options) in variants {
         assert_agree(name, run(options), (reference, reference_se));

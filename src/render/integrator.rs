@@ -28,7 +28,12 @@
 //!   σ̄ and its probability.
 //!
 //! Absorption never terminates a path; it only weights it. Russian roulette
-//! ends paths without bias.
+//! ends paths without bias. On the branches of camera paths the first
+//! tentative collision is forced into the segment where the ray would
+//! otherwise leave the atmosphere ([`IntegratorOptions::forced_collision_depth`]):
+//! an escaping path adds nothing there, so conditioning on not escaping and
+//! weighting by its probability turns a rare large contribution into a
+//! frequent small one.
 //!
 //! **Scattering directions** mix the phase function about the path's
 //! direction with the phase function about the sun's (`sun_lobe`, 0.3 by
@@ -119,6 +124,16 @@ pub struct IntegratorOptions {
     /// its transmittance pass over the whole (often grazing) ray costs ~2.5×
     /// a delta-tracked segment, more than the variance it saves.
     pub shadow_samples: u32,
+    /// Delta-tracked path segments that start after 1 to this many
+    /// scatterings and leave the atmosphere force their first tentative
+    /// collision into the segment (weighted by its probability;
+    /// `Integrator::force_collision`), 0–64; 0 = off. Default 1, the
+    /// branches of camera paths: at midday it cuts the variance more than
+    /// the longer paths cost (time to equal noise 0.8×, `BENCHMARKS.md`);
+    /// forcing deeper segments too, or the continuations of low-sun segment
+    /// estimates, gained nothing more at midday and cost at sunset and
+    /// twilight.
+    pub forced_collision_depth: u32,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
     /// How a pixel sample draws its first random numbers.
@@ -141,6 +156,7 @@ impl Default for IntegratorOptions {
             sun_lobe: 0.3,
             sky_guide: 0.0,
             shadow_samples: 0,
+            forced_collision_depth: 1,
             russian_roulette: true,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
@@ -209,6 +225,9 @@ const ROULETTE_CAP_DEPTH: u32 = 64;
 /// 0.52 here, at midday 0.43 vs 0.36; bench at equal time, alternated runs:
 /// 0.86–0.95× the noise in every scene (BENCHMARKS.md).
 const ROULETTE_WEIGHT: f64 = 0.25;
+/// Largest [`IntegratorOptions::forced_collision_depth`] accepted (the
+/// depth past which roulette caps survival at 0.9).
+pub const MAX_FORCED_COLLISION_DEPTH: u32 = ROULETTE_CAP_DEPTH;
 /// Most in-scattering points on one segment.
 pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
 /// Most branches of a camera path.
@@ -758,6 +777,32 @@ impl<'a> Integrator<'a> {
         ))
     }
 
+    /// Forced collision: on a segment that leaves the atmosphere after
+    /// `depth` ≤ [`IntegratorOptions::forced_collision_depth`] scatterings,
+    /// conditions `tracker`'s first tentative collision on lying within the
+    /// segment and weights `beta` by the chance that it would, 1 − exp(−τ̄).
+    /// Unbiased where a path that escapes adds nothing: next-event estimates
+    /// have already counted the sun (not on camera rays, depth 0, which may
+    /// see its disc), and space is black. An upward ray at midday has τ̄ ≈
+    /// 0.1: without forcing, 9 paths in 10 leave with nothing further and
+    /// the tenth carries all the higher orders.
+    fn force_collision(
+        &self,
+        tracker: &mut super::medium::Tracker<'_>,
+        span: Span,
+        depth: u32,
+        beta: &mut Lanes,
+        rng: &mut Rng,
+    ) {
+        if depth == 0 || depth > self.options.forced_collision_depth || span.hits_ground {
+            return;
+        }
+        let p = tracker.force_collision(rng);
+        for b in beta {
+            *b *= p;
+        }
+    }
+
     /// A tentative collision at `x` (coefficients `c`, under `majorant`) on a
     /// path along `dir` with weight `beta`: a real scattering, with the lane
     /// average of σ_s/(σ̄ − σ_a) as its probability P_s (absorption only
@@ -955,6 +1000,9 @@ impl<'a> Integrator<'a> {
                 scattered = true;
             } else if let Some(span) = self.medium.span(origin, dir) {
                 let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
+                if depth > 0 && opts.next_event_estimation {
+                    self.force_collision(&mut tracker, span, depth, &mut beta, rng);
+                }
                 while let Some(collision) = tracker.next(rng) {
                     let x = origin + dir * collision.t;
                     let c = self.medium.coefficients(x.length(), lanes);
