@@ -558,10 +558,13 @@ pub fn ablation_variants() -> Vec<Variant> {
             s.render.integrator.shadow_samples = 1;
         }),
         ("sun_lobe=0", |s| {
-            s.render.integrator.sun_lobe = 0.0;
+            s.render.integrator.sun_lobe = Some(0.0);
+        }),
+        ("sun_lobe=0.3", |s| {
+            s.render.integrator.sun_lobe = Some(0.3);
         }),
         ("sun_lobe=0.5", |s| {
-            s.render.integrator.sun_lobe = 0.5;
+            s.render.integrator.sun_lobe = Some(0.5);
         }),
         ("forced_collision_depth=0", |s| {
             s.render.integrator.forced_collision_depth = 0;

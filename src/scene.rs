@@ -350,7 +350,9 @@ impl Scene {
         check_count("shadow samples", i.shadow_samples as usize, 0, samples)?;
         check_count("camera samples", i.camera_samples as usize, 0, samples)?;
         check_count("camera branches", i.camera_branches as usize, 1, branches)?;
-        check_range("sun lobe", i.sun_lobe, 0.0, 1.0)?;
+        if let Some(share) = i.sun_lobe {
+            check_range("sun lobe", share, 0.0, 1.0)?;
+        }
         check_range("sky guide", i.sky_guide, 0.0, 1.0)?;
         check_count(
             "forced collision depth",

@@ -312,7 +312,7 @@ fn estimator_variants_agree_statistically() {
         (
             "sun lobe",
             IntegratorOptions {
-                sun_lobe: 0.5,
+                sun_lobe: Some(0.5),
                 ..Default::default()
             },
         ),
@@ -384,7 +384,7 @@ fn sunlight_sampling_is_unbiased_in_twilight() {
         let run = |sunlight_samples: u32, sun_lobe: f64, paths: u32| {
             let options = IntegratorOptions {
                 sunlight_samples: Some(sunlight_samples),
-                sun_lobe,
+                sun_lobe: Some(sun_lobe),
                 ..IntegratorOptions::default()
             };
             let integrator = Integrator::new(&medium, &options, sun_dir);

@@ -83,7 +83,7 @@ enum TaskResult {
     /// A dialog closed with this path (`None`: cancelled).
     Picked(Dialog, Option<PathBuf>),
     /// A scene file was read.
-    SceneLoaded(PathBuf, Result<Scene, String>),
+    SceneLoaded(PathBuf, Result<Box<Scene>, String>),
     /// A file (view, scene, screenshot) was written, or not.
     Saved(&'static str, PathBuf, Result<(), String>),
 }
@@ -378,7 +378,7 @@ impl SkyApp {
     /// current scene if it is valid.
     pub fn load_scene_from(&mut self, path: PathBuf) {
         self.spawn_task(move || {
-            let result = io::load_scene(&path);
+            let result = io::load_scene(&path).map(Box::new);
             TaskResult::SceneLoaded(path, result)
         });
     }
@@ -399,7 +399,7 @@ impl SkyApp {
                     }
                 }
                 TaskResult::SceneLoaded(path, Ok(scene)) => {
-                    if self.state.set_scene(scene) {
+                    if self.state.set_scene(*scene) {
                         self.state.message = Some(format!("loaded '{}'", path.display()));
                     }
                 }
