@@ -641,16 +641,35 @@ impl<'a> Integrator<'a> {
         for (point, sample) in points.iter_mut().zip(&samples[..m]) {
             point.0 = sample.0;
         }
-        let tr_end = self.medium.transmittance_along(
-            origin,
-            dir,
-            span,
-            lanes,
-            opts.shadow_transmittance,
-            self.bounds,
-            &mut points[..m],
-            rng,
-        );
+        // The transmittance to the end is needed at a ground hit and on a
+        // camera ray toward the sun's disc; elsewhere the pass stops at the
+        // last point.
+        let to_end =
+            span.hits_ground || (depth == 0 && dir.dot(self.sun_direction) >= self.cos_sun_radius);
+        let tr_end = if to_end {
+            self.medium.transmittance_along(
+                origin,
+                dir,
+                span,
+                lanes,
+                opts.shadow_transmittance,
+                self.bounds,
+                &mut points[..m],
+                rng,
+            )
+        } else {
+            self.medium.transmittance_to_checkpoints(
+                origin,
+                dir,
+                span,
+                lanes,
+                opts.shadow_transmittance,
+                self.bounds,
+                &mut points[..m],
+                rng,
+            );
+            [0.0; LANES]
+        };
         let mut next = [None; MAX_BRANCHES];
         let share = 1.0 / branches.max(1) as f64;
         for (&(t, tr_view), &(_, density, branch)) in points.iter().zip(&samples[..m]) {

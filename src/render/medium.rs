@@ -814,6 +814,58 @@ impl Medium {
         checkpoints: &mut [(f64, Lanes)],
         rng: &mut Rng,
     ) -> Lanes {
+        let pass = Pass {
+            estimator,
+            bounds,
+            to_end: true,
+        };
+        self.tracking_pass(origin, dir, span, lanes, pass, checkpoints, rng)
+            .unwrap_or([0.0; LANES])
+    }
+
+    /// [`Self::transmittance_along`] to the checkpoints only: the pass stops
+    /// after the last one (a segment's far part costs nothing when only its
+    /// in-scattering points need their transmittance).
+    #[allow(clippy::too_many_arguments)]
+    pub fn transmittance_to_checkpoints(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        span: Span,
+        lanes: &SpectralLanes,
+        estimator: TransmittanceEstimator,
+        bounds: Bounds,
+        checkpoints: &mut [(f64, Lanes)],
+        rng: &mut Rng,
+    ) {
+        let pass = Pass {
+            estimator,
+            bounds,
+            to_end: false,
+        };
+        self.tracking_pass(origin, dir, span, lanes, pass, checkpoints, rng);
+    }
+
+    /// The pass of [`Self::transmittance_along`]; with `pass.to_end` false it
+    /// stops once every checkpoint has its estimate and returns `None`.
+    #[allow(clippy::too_many_arguments)]
+    fn tracking_pass(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        span: Span,
+        lanes: &SpectralLanes,
+        Pass {
+            estimator,
+            bounds,
+            to_end,
+        }: Pass,
+        checkpoints: &mut [(f64, Lanes)],
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        if !to_end && checkpoints.is_empty() {
+            return None;
+        }
         let mut walk = self.walk(origin, dir, span, bounds);
         let mut transmittance = [1.0; LANES];
         let mut control_columns = [0.0; 3];
@@ -901,7 +953,10 @@ impl Medium {
                 for c in &mut checkpoints[next_checkpoint..] {
                     c.1 = [0.0; LANES];
                 }
-                return [0.0; LANES];
+                return Some([0.0; LANES]);
+            }
+            if !to_end && next_checkpoint == checkpoints.len() {
+                return None;
             }
         }
         // Checkpoints at or past the end (rounding) get the end's estimate.
@@ -910,8 +965,17 @@ impl Medium {
         for c in &mut checkpoints[next_checkpoint..] {
             c.1 = end;
         }
-        end
+        Some(end)
     }
+}
+
+/// How [`Medium::tracking_pass`] runs.
+#[derive(Clone, Copy)]
+struct Pass {
+    estimator: TransmittanceEstimator,
+    bounds: Bounds,
+    /// Whether the estimate to the span's end is wanted.
+    to_end: bool,
 }
 
 /// Estimators of transmittance along shadow rays.
@@ -1210,6 +1274,47 @@ mod tests {
                 "el {el}: {} vs {mean} ± {se}",
                 hit_t / hits
             );
+        }
+    }
+
+    #[test]
+    fn a_pass_to_the_checkpoints_only_gives_them_the_same_estimates() {
+        // Stopping after the last checkpoint changes nothing before it: the
+        // same random numbers give bit-identical checkpoint estimates.
+        let medium = medium();
+        let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
+        let estimator = TransmittanceEstimator::ResidualRatioTracking;
+        for (origin, dir) in test_rays(&medium) {
+            let span = medium.span(origin, dir).unwrap();
+            let length = span.t_exit - span.t_enter;
+            for seed in 0..20 {
+                let mut along = [0.05, 0.2, 0.3].map(|f| (span.t_enter + f * length, [0.0; LANES]));
+                let mut only = along;
+                let mut rng = Rng::new(11, seed);
+                let mut same = rng.clone();
+                medium.transmittance_along(
+                    origin,
+                    dir,
+                    span,
+                    &lanes,
+                    estimator,
+                    Bounds::Tight,
+                    &mut along,
+                    &mut rng,
+                );
+                medium.transmittance_to_checkpoints(
+                    origin,
+                    dir,
+                    span,
+                    &lanes,
+                    estimator,
+                    Bounds::Tight,
+                    &mut only,
+                    &mut same,
+                );
+                assert_eq!(along, only);
+                assert!(along.iter().all(|(_, t)| t[0] > 0.0 && t[0] <= 1.5));
+            }
         }
     }
 
