@@ -544,17 +544,13 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("sunlight_samples=1", |s| {
             s.render.integrator.sunlight_samples = Some(1);
         }),
-        ("sky_guide=0.25", |s| {
-            s.render.integrator.sky_guide = 0.25;
+        ("sky_guide=0", |s| {
+            s.render.integrator.sky_guide = 0.0;
         }),
         ("sky_guide=0.5", |s| {
             s.render.integrator.sky_guide = 0.5;
         }),
         ("shadow_samples=1", |s| {
-            s.render.integrator.shadow_samples = 1;
-        }),
-        ("sky_guide=0.25+shadow_samples=1", |s| {
-            s.render.integrator.sky_guide = 0.25;
             s.render.integrator.shadow_samples = 1;
         }),
         ("sun_lobe=0", |s| {

@@ -513,6 +513,8 @@ fn sky_guide_is_unbiased() {
             let (reference, reference_se) = run(
                 IntegratorOptions {
                     camera_samples: 0,
+                    sky_guide: 0.0,
+                    forced_collision_depth: 0,
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
                 },
