@@ -547,6 +547,12 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("sky_guide=0", |s| {
             s.render.integrator.sky_guide = 0.0;
         }),
+        ("sky_guide_sunlit=false", |s| {
+            s.render.integrator.sky_guide_sunlit = Some(false);
+        }),
+        ("sky_guide_sunlit=true", |s| {
+            s.render.integrator.sky_guide_sunlit = Some(true);
+        }),
         ("sky_guide=0.5", |s| {
             s.render.integrator.sky_guide = 0.5;
         }),

@@ -523,6 +523,7 @@ fn sky_guide_is_unbiased() {
             let variants = [
                 IntegratorOptions {
                     sky_guide: 0.5,
+                    sky_guide_sunlit: Some(true),
                     shadow_samples: 1,
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
