@@ -92,12 +92,14 @@ impl SkyGuide {
     }
 
     /// Whether the planet hides the sun's centre from `x` (m, planet-centred).
-    /// Only there does the table guide directions: at sunlit points the
-    /// phase function about the sun (the integrator's sun lobe) follows the
-    /// once-scattered light's sharp aureole better than the table's cells
-    /// can (`BENCHMARKS.md`: guiding everywhere loses 1.2–1.6× by day),
-    /// while in the shadow the light comes from the sunlit air above the
-    /// horizon, which no phase function about a fixed axis finds.
+    /// By day only there does the table guide directions: at sunlit points
+    /// the phase function about the sun (the integrator's sun lobe) follows
+    /// the once-scattered light's sharp aureole better than the table's
+    /// cells can (`BENCHMARKS.md`: guiding everywhere loses 1.2–1.6× by
+    /// day), while in the shadow the light comes from the sunlit air above
+    /// the horizon, which no phase function about a fixed axis finds. With
+    /// the sun low, sunlit points see that glow too and are guided as well
+    /// (`sky_guide_sunlit` of [`super::IntegratorOptions`]).
     pub fn shadowed(&self, x: DVec3) -> bool {
         let r = x.length();
         x.dot(self.sun_direction) / r < horizon_cosine(self.planet_radius_m, r)
