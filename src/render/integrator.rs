@@ -661,30 +661,17 @@ impl<'a> Integrator<'a> {
         // last point.
         let to_end =
             span.hits_ground || (depth == 0 && dir.dot(self.sun_direction) >= self.cos_sun_radius);
-        let tr_end = if to_end {
-            self.medium.transmittance_along(
-                origin,
-                dir,
-                span,
-                lanes,
-                opts.shadow_transmittance,
-                self.bounds,
-                &mut points[..m],
-                rng,
-            )
-        } else {
-            self.medium.transmittance_to_checkpoints(
-                origin,
-                dir,
-                span,
-                lanes,
-                opts.shadow_transmittance,
-                self.bounds,
-                &mut points[..m],
-                rng,
-            );
-            [0.0; LANES]
-        };
+        let tr_end = self.medium.transmittance_along(
+            origin,
+            dir,
+            span,
+            lanes,
+            opts.shadow_transmittance,
+            self.bounds,
+            &mut points[..m],
+            to_end,
+            rng,
+        );
         let mut next = [None; MAX_BRANCHES];
         let share = 1.0 / branches.max(1) as f64;
         for (&(t, tr_view), &(_, density, branch)) in points.iter().zip(&samples[..m]) {
@@ -718,6 +705,10 @@ impl<'a> Integrator<'a> {
                     * tr_sun[j];
             }
         }
+        // What lies at the end (only where the pass went there).
+        let Some(tr_end) = tr_end else {
+            return next;
+        };
         let through: Lanes = std::array::from_fn(|j| beta[j] * tr_end[j]);
         if span.hits_ground {
             let normal = (origin + dir * span.t_exit).normalize();

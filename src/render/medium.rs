@@ -750,9 +750,20 @@ impl Medium {
             (TransmittanceEstimator::ChordResidualRatioTracking, Bounds::Tight) => {
                 self.chord_transmittance(origin, dir, span, lanes, rng)
             }
-            _ => {
-                self.transmittance_along(origin, dir, span, lanes, estimator, bounds, &mut [], rng)
-            }
+            // A pass to the end always returns its estimate.
+            _ => self
+                .transmittance_along(
+                    origin,
+                    dir,
+                    span,
+                    lanes,
+                    estimator,
+                    bounds,
+                    &mut [],
+                    true,
+                    rng,
+                )
+                .unwrap_or([0.0; LANES]),
         }
     }
 
@@ -798,10 +809,12 @@ impl Medium {
 
     /// Unbiased transmittance estimates from the start of `span` to each
     /// distance in `checkpoints` (ascending; each replaced by its estimate in
-    /// lane 0..LANES of the matching entry of the returned prefix) and to the
-    /// end of the span (returned). One tracking pass serves all: the estimate
-    /// to a checkpoint is the product of the factors before it, unbiased on
-    /// its own.
+    /// lane 0..LANES of the matching entry of the returned prefix) and, with
+    /// `to_end`, to the end of the span (returned). One tracking pass serves
+    /// all: the estimate to a checkpoint is the product of the factors before
+    /// it, unbiased on its own. Without `to_end` the pass stops after the
+    /// last checkpoint and returns `None` (a segment's far part costs nothing
+    /// when only its in-scattering points need their transmittance).
     #[allow(clippy::too_many_arguments)]
     pub fn transmittance_along(
         &self,
@@ -812,55 +825,7 @@ impl Medium {
         estimator: TransmittanceEstimator,
         bounds: Bounds,
         checkpoints: &mut [(f64, Lanes)],
-        rng: &mut Rng,
-    ) -> Lanes {
-        let pass = Pass {
-            estimator,
-            bounds,
-            to_end: true,
-        };
-        self.tracking_pass(origin, dir, span, lanes, pass, checkpoints, rng)
-            .unwrap_or([0.0; LANES])
-    }
-
-    /// [`Self::transmittance_along`] to the checkpoints only: the pass stops
-    /// after the last one (a segment's far part costs nothing when only its
-    /// in-scattering points need their transmittance).
-    #[allow(clippy::too_many_arguments)]
-    pub fn transmittance_to_checkpoints(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        span: Span,
-        lanes: &SpectralLanes,
-        estimator: TransmittanceEstimator,
-        bounds: Bounds,
-        checkpoints: &mut [(f64, Lanes)],
-        rng: &mut Rng,
-    ) {
-        let pass = Pass {
-            estimator,
-            bounds,
-            to_end: false,
-        };
-        self.tracking_pass(origin, dir, span, lanes, pass, checkpoints, rng);
-    }
-
-    /// The pass of [`Self::transmittance_along`]; with `pass.to_end` false it
-    /// stops once every checkpoint has its estimate and returns `None`.
-    #[allow(clippy::too_many_arguments)]
-    fn tracking_pass(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        span: Span,
-        lanes: &SpectralLanes,
-        Pass {
-            estimator,
-            bounds,
-            to_end,
-        }: Pass,
-        checkpoints: &mut [(f64, Lanes)],
+        to_end: bool,
         rng: &mut Rng,
     ) -> Option<Lanes> {
         if !to_end && checkpoints.is_empty() {
@@ -967,15 +932,6 @@ impl Medium {
         }
         Some(end)
     }
-}
-
-/// How [`Medium::tracking_pass`] runs.
-#[derive(Clone, Copy)]
-struct Pass {
-    estimator: TransmittanceEstimator,
-    bounds: Bounds,
-    /// Whether the estimate to the span's end is wanted.
-    to_end: bool,
 }
 
 /// Estimators of transmittance along shadow rays.
@@ -1300,9 +1256,10 @@ mod tests {
                     estimator,
                     Bounds::Tight,
                     &mut along,
+                    true,
                     &mut rng,
                 );
-                medium.transmittance_to_checkpoints(
+                medium.transmittance_along(
                     origin,
                     dir,
                     span,
@@ -1310,6 +1267,7 @@ mod tests {
                     estimator,
                     Bounds::Tight,
                     &mut only,
+                    false,
                     &mut same,
                 );
                 assert_eq!(along, only);
@@ -1459,16 +1417,19 @@ mod tests {
             };
             let along = |rng: &mut Rng| {
                 let rrt = TransmittanceEstimator::ResidualRatioTracking;
-                medium.transmittance_along(
-                    origin,
-                    dir,
-                    span,
-                    &lanes,
-                    rrt,
-                    Bounds::Tight,
-                    &mut [],
-                    rng,
-                )
+                medium
+                    .transmittance_along(
+                        origin,
+                        dir,
+                        span,
+                        &lanes,
+                        rrt,
+                        Bounds::Tight,
+                        &mut [],
+                        true,
+                        rng,
+                    )
+                    .expect("a pass to the end")
             };
             let estimators: [(&str, Estimate, f64); 3] = [
                 ("table", &table, if steep { 0.02 } else { 0.2 }),
