@@ -75,6 +75,7 @@ use super::guide::SkyGuide;
 use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDistribution};
+use super::trig::sin_cos_turns;
 use crate::physics::{rayleigh, sun};
 use crate::rng::Rng;
 
@@ -366,9 +367,9 @@ impl<'a> Integrator<'a> {
     fn sample_sun_direction(&self, rng: &mut Rng) -> DVec3 {
         let cos_theta = 1.0 - rng.uniform() * (1.0 - self.cos_sun_radius);
         let sin_theta = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let phi = 2.0 * PI * rng.uniform();
+        let (sin_phi, cos_phi) = sin_cos_turns(rng.uniform());
         let (t, b) = self.sun_frame;
-        (t * (sin_theta * phi.cos()) + b * (sin_theta * phi.sin()) + self.sun_direction * cos_theta)
+        (t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + self.sun_direction * cos_theta)
             .normalize()
     }
 
@@ -1135,10 +1136,10 @@ impl<'a> Integrator<'a> {
                 .aerosol_phase
                 .sample(self.medium.aerosol_g, || rng.uniform())
         };
-        let phi = 2.0 * PI * rng.uniform();
+        let (sin_phi, cos_phi) = sin_cos_turns(rng.uniform());
         let sin = (1.0 - mu * mu).max(0.0).sqrt();
         let (t, b) = orthonormal_basis(dir);
-        (t * (sin * phi.cos()) + b * (sin * phi.sin()) + dir * mu).normalize()
+        (t * (sin * cos_phi) + b * (sin * sin_phi) + dir * mu).normalize()
     }
 }
 
@@ -1197,10 +1198,10 @@ fn ground_point(medium: &Medium, normal: DVec3) -> DVec3 {
 /// Cosine-weighted direction about `normal` (Malley's method).
 fn cosine_sample_hemisphere(normal: DVec3, rng: &mut Rng) -> DVec3 {
     let r = rng.uniform().sqrt();
-    let phi = 2.0 * PI * rng.uniform();
+    let (sin_phi, cos_phi) = sin_cos_turns(rng.uniform());
     let z = (1.0 - r * r).max(0.0).sqrt();
     let (t, b) = orthonormal_basis(normal);
-    (t * (r * phi.cos()) + b * (r * phi.sin()) + normal * z).normalize()
+    (t * (r * cos_phi) + b * (r * sin_phi) + normal * z).normalize()
 }
 
 #[cfg(test)]

@@ -15,6 +15,7 @@ pub mod integrator;
 pub mod medium;
 pub mod service;
 pub mod sunlight;
+pub mod trig;
 
 use std::sync::atomic::{AtomicU64, Ordering};
 
