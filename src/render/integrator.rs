@@ -247,7 +247,7 @@ pub enum Sampler {
     /// `BENCHMARKS.md`).
     #[default]
     Sobol,
-    /// Every uniform independent (PCG32).
+    /// Every uniform independent (PCG).
     Independent,
 }
 
