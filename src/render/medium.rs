@@ -1050,11 +1050,7 @@ impl Tracker<'_> {
     /// the span: the path's weight is multiplied by it. The optical depth to
     /// the collision is then exponential truncated at τ̄.
     pub fn force_collision(&mut self, rng: &mut Rng) -> f64 {
-        let mut walk = self.walk.clone();
-        let mut depth = self.majorant * (self.piece_end - self.t);
-        while let Some(piece) = walk.next_piece(self.medium) {
-            depth += self.lanes.shell(&walk, piece.shell).majorant * (piece.t1 - piece.t0);
-        }
+        let depth = self.majorant * (self.piece_end - self.t) + self.remaining_majorant_depth();
         // −expm1(−τ̄) keeps its precision for thin rays.
         let p = -(-depth).exp_m1();
         if p <= 0.0 {
@@ -1063,6 +1059,69 @@ impl Tracker<'_> {
         // A truncated exponential: −ln(1 − u p), u ∈ (0, 1].
         self.budget = -(-rng.uniform_open0() * p).ln_1p();
         p
+    }
+
+    /// The majorant's optical depth over the pieces the walk has not
+    /// reached, in closed form rather than piece by piece (a walk costs a
+    /// square root and a branch per piece, and forcing then walked every
+    /// segment twice: 6 % of a midday render, callgrind, session 11).
+    /// Measured from the perigee, the ray's points at distance u lie at
+    /// radius √(p² + u²), so shell s, between radii a and b, holds the u
+    /// with c(a) ≤ |u| < c(b), c(r) = √(max(r² − p², 0)): the span's part
+    /// beyond the perigee, u ∈ [max(u₀, 0), max(u₁, 0)], and its part
+    /// before it, |u| ∈ [max(−u₁, 0), max(−u₀, 0)], each overlap a
+    /// difference of two such values.
+    fn remaining_majorant_depth(&self) -> f64 {
+        let walk = &self.walk;
+        if walk.t >= walk.t_end {
+            return 0.0;
+        }
+        let majorants = &self.lanes.majorants;
+        if walk.global {
+            return majorants[GLOBAL_SLOT] * (walk.t_end - walk.t);
+        }
+        // Plain comparisons: no NaN can occur, and `f64::min`/`max` cost
+        // their NaN handling in this loop.
+        let (min, max) = (
+            |a: f64, b: f64| if a < b { a } else { b },
+            |a: f64, b: f64| if a > b { a } else { b },
+        );
+        let radii = &self.medium.shell_radii_m;
+        let crossing = |r: f64| {
+            let d = r * r - walk.perigee2;
+            if d > 0.0 {
+                d.sqrt()
+            } else {
+                0.0
+            }
+        };
+        let (u0, u1) = (walk.t - walk.perigee_t, walk.t_end - walk.perigee_t);
+        let mut depth = 0.0;
+        if u0 >= 0.0 {
+            // Past the perigee (most forced segments: upward): the walk's
+            // shell and those above it, each from crossing to crossing.
+            let mut lo = u0;
+            for (s, &r) in radii.iter().enumerate().skip(walk.shell + 1) {
+                let hi = min(crossing(r), u1);
+                depth += majorants[s - 1] * max(hi - lo, 0.0);
+                if hi >= u1 {
+                    break;
+                }
+                lo = hi;
+            }
+            return depth;
+        }
+        let (after_lo, after_hi) = (0.0, max(u1, 0.0));
+        let (before_lo, before_hi) = (max(-u1, 0.0), -u0);
+        let mut c_lo = crossing(radii[0]);
+        for (s, &r) in radii[1..].iter().enumerate() {
+            let c_hi = crossing(r);
+            let after = max(min(c_hi, after_hi) - max(c_lo, after_lo), 0.0);
+            let before = max(min(c_hi, before_hi) - max(c_lo, before_lo), 0.0);
+            depth += majorants[s] * (after + before);
+            c_lo = c_hi;
+        }
+        depth
     }
 
     /// The next tentative collision, or `None` at the end of the span.
@@ -1230,6 +1289,38 @@ mod tests {
                 "el {el}: {} vs {mean} ± {se}",
                 hit_t / hits
             );
+        }
+    }
+
+    #[test]
+    fn the_closed_form_majorant_depth_matches_the_walk() {
+        // The majorant's optical depth of a whole span, in closed form,
+        // against the sum over the pieces of a walk, for rays up, across,
+        // grazing, into the ground and from orbit, with tight and global
+        // bounds, from the span's start and from part-way along it.
+        let medium = medium();
+        let lanes = SpectralLanes::new([400.0, 500.0, 600.0, 700.0], 4, &medium, false);
+        for (origin, dir) in test_rays(&medium) {
+            let span = medium.span(origin, dir).unwrap();
+            for bounds in [Bounds::Tight, Bounds::Global] {
+                let mut tracker = medium.tracker(origin, dir, span, &lanes, bounds);
+                for _ in 0..4 {
+                    let mut walk = tracker.walk.clone();
+                    let mut walked = 0.0;
+                    while let Some(piece) = walk.next_piece(&medium) {
+                        walked += lanes.shell(&walk, piece.shell).majorant * (piece.t1 - piece.t0);
+                    }
+                    let closed = tracker.remaining_majorant_depth();
+                    assert!(
+                        (closed - walked).abs() <= 1e-9 * walked + 1e-12,
+                        "{dir:?} {bounds:?}: {closed} vs {walked}"
+                    );
+                    // On to the next piece.
+                    if tracker.walk.next_piece(&medium).is_none() {
+                        break;
+                    }
+                }
+            }
         }
     }
 
