@@ -535,8 +535,8 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("camera_samples=0", |s| {
             s.render.integrator.camera_samples = 0;
         }),
-        ("camera_samples=2", |s| {
-            s.render.integrator.camera_samples = 2;
+        ("camera_samples=1", |s| {
+            s.render.integrator.camera_samples = 1;
         }),
         ("camera_branches=1", |s| {
             s.render.integrator.camera_branches = 1;

@@ -94,7 +94,10 @@ pub struct IntegratorOptions {
     pub next_event_estimation: bool,
     /// Next-event points on each camera ray, drawn from the expected
     /// sunlight along it (tabulated per view direction, [`CameraDensities`];
-    /// stratified), 0–8; default 1. 0 = delta tracking on camera rays too.
+    /// stratified), 0–8; default 2: against 1, 7.5 % less variance at
+    /// midday for 1.5 % more time, 6 % and 4 % less from orbit and at
+    /// sunset, the same at twilight (session 11). 0 = delta tracking on
+    /// camera rays too.
     pub camera_samples: u32,
     /// Paths the camera ray branches into at its segment (each from its own
     /// point, drawn from the skylight part of the density, or ground bounce,
@@ -167,7 +170,7 @@ impl Default for IntegratorOptions {
             tight_majorants: true,
             shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
             next_event_estimation: true,
-            camera_samples: 1,
+            camera_samples: 2,
             camera_branches: 4,
             sunlight_samples: None,
             sun_lobe: None,

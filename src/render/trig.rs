@@ -10,8 +10,9 @@
 
 use std::f64::consts::FRAC_PI_2;
 
-/// (sin 2πt, cos 2πt) for a finite `turns` = t, within 2 × 10⁻¹⁶ of the
-/// exact values (tested against `f64::sin_cos`).
+/// (sin 2πt, cos 2πt) for a finite `turns` = t: within 10⁻¹⁵ of libm's
+/// `sin_cos(2πt)` on [0, 1) (which itself rounds 2πt first; tested), with
+/// sin² + cos² within 4 × 10⁻¹⁶ of 1.
 #[inline]
 pub fn sin_cos_turns(turns: f64) -> (f64, f64) {
     // t = q/4 + r/4 with integer q and |r| ≤ 1/2: both steps are exact.
