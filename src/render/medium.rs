@@ -1335,32 +1335,25 @@ mod tests {
             let span = medium.span(origin, dir).unwrap();
             let length = span.t_exit - span.t_enter;
             for seed in 0..20 {
-                let mut along = [0.05, 0.2, 0.3].map(|f| (span.t_enter + f * length, [0.0; LANES]));
-                let mut only = along;
-                let mut rng = Rng::new(11, seed);
-                let mut same = rng.clone();
-                medium.transmittance_along(
-                    origin,
-                    dir,
-                    span,
-                    &lanes,
-                    estimator,
-                    Bounds::Tight,
-                    &mut along,
-                    true,
-                    &mut rng,
-                );
-                medium.transmittance_along(
-                    origin,
-                    dir,
-                    span,
-                    &lanes,
-                    estimator,
-                    Bounds::Tight,
-                    &mut only,
-                    false,
-                    &mut same,
-                );
+                // The checkpoints' estimates from a pass with the seed's
+                // random numbers, to the end or stopping after the last.
+                let pass = |to_end: bool| {
+                    let mut checkpoints =
+                        [0.05, 0.2, 0.3].map(|f| (span.t_enter + f * length, [0.0; LANES]));
+                    medium.transmittance_along(
+                        origin,
+                        dir,
+                        span,
+                        &lanes,
+                        estimator,
+                        Bounds::Tight,
+                        &mut checkpoints,
+                        to_end,
+                        &mut Rng::new(11, seed),
+                    );
+                    checkpoints
+                };
+                let (along, only) = (pass(true), pass(false));
                 assert_eq!(along, only);
                 assert!(along.iter().all(|(_, t)| t[0] > 0.0 && t[0] <= 1.5));
             }
