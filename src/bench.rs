@@ -583,6 +583,12 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("russian_roulette=false", |s| {
             s.render.integrator.russian_roulette = false;
         }),
+        ("splitting=false", |s| {
+            s.render.integrator.splitting = Some(false);
+        }),
+        ("splitting=true", |s| {
+            s.render.integrator.splitting = Some(true);
+        }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
         }),

@@ -540,14 +540,24 @@ fn sky_guide_is_unbiased() {
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
                 },
+                // Adjoint-driven roulette and splitting on the guide's
+                // importance.
+                IntegratorOptions {
+                    sunlight_samples: Some(1),
+                    sky_guide_sunlit: Some(true),
+                    splitting: Some(true),
+                    max_scattering_order: order,
+                    ..IntegratorOptions::default()
+                },
             ];
             for options in variants {
                 let what = format!(
                     "{altitude_m} m, view ({az}, {el}), order {order:?}, guide {}, shadow {}, \
-                     sunlight {}",
+                     sunlight {}, splitting {:?}",
                     options.sky_guide,
                     options.shadow_samples,
-                    options.sunlight_samples()
+                    options.sunlight_samples(),
+                    options.splitting
                 );
                 assert_agree(&what, run(options, 10_000), (reference, reference_se));
             }

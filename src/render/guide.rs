@@ -22,8 +22,11 @@
 //! renderer it only shapes the sampling: the estimator stays unbiased
 //! whatever the table's error.
 //!
-//! Used through the options `sky_guide`, `shadow_samples` and
-//! `sunlight_samples` of [`super::IntegratorOptions`]. The last is on by
+//! Its total over directions, [`SkyGuide::skylight`], is the importance of
+//! the integrator's roulette and splitting (`splitting`).
+//!
+//! Used through the options `sky_guide`, `shadow_samples`,
+//! `sunlight_samples` and `splitting` of [`super::IntegratorOptions`]. The last is on by
 //! default with the sun below [`super::integrator::LOW_SUN_ELEVATION_DEG`],
 //! where its segment estimates, through this guide's cached densities, win
 //! at equal time (`BENCHMARKS.md`, session 8); `sky_guide` draws a quarter
@@ -72,6 +75,8 @@ struct PointCell {
     /// Cumulative probability over the direction cells (∝ L₁ × solid angle);
     /// empty where no sunlight reaches any direction.
     cdf: Vec<f64>,
+    /// ∫ L₁ dω over the sphere per unit irradiance (the table's total), sr⁻¹·sr.
+    fluence: f64,
     /// Distance densities of the representative rays, built on first use.
     rays: DensitySlots,
 }
@@ -115,7 +120,7 @@ impl SkyGuide {
         let s =
             band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
         let k = ((s * SUN_ZENITH_CELLS as f64) as usize).min(SUN_ZENITH_CELLS - 1);
-        let cell = self.cells[i * SUN_ZENITH_CELLS + k].get_or_init(|| self.build(medium, i, k));
+        let cell = self.cell(medium, i, k);
         GuideAt {
             guide: self,
             cell,
@@ -159,6 +164,7 @@ impl SkyGuide {
             cdf.push(cdf[d] + if mass.is_finite() { mass } else { 0.0 });
         }
         let total = cdf[DIRECTION_GRID.cells()];
+        let fluence = total;
         if total > 0.0 {
             for c in &mut cdf {
                 *c /= total;
@@ -170,8 +176,32 @@ impl SkyGuide {
             origin_m,
             frame,
             cdf,
+            fluence,
             rays,
         }
+    }
+
+    /// The cell of (altitude `i`, solar zenith `k`), built on first use.
+    fn cell(&self, medium: &Medium, i: usize, k: usize) -> &PointCell {
+        self.cells[i * SUN_ZENITH_CELLS + k].get_or_init(|| self.build(medium, i, k))
+    }
+
+    /// Approximate mean once-scattered radiance arriving at `x` per unit
+    /// irradiance, sr⁻¹ (the tables' fluence over 4π, interpolated bilinearly
+    /// between cell centres).
+    pub fn skylight(&self, medium: &Medium, x: DVec3) -> f64 {
+        let r = x.length();
+        let top_m = self.top_radius_m - self.planet_radius_m;
+        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
+        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
+        let s =
+            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
+        let (i, fa) = cell_split(a, ALTITUDE_CELLS);
+        let (k, fs) = cell_split(s, SUN_ZENITH_CELLS);
+        let f = |i: usize, k: usize| self.cell(medium, i, k).fluence;
+        let lo = f(i, k) * (1.0 - fs) + f(i, k + 1) * fs;
+        let hi = f(i + 1, k) * (1.0 - fs) + f(i + 1, k + 1) * fs;
+        (lo * (1.0 - fa) + hi * fa) / (4.0 * std::f64::consts::PI)
     }
 
     /// Approximate once-scattered light per unit irradiance arriving at
@@ -199,6 +229,14 @@ impl SkyGuide {
         }
         light
     }
+}
+
+/// The lower of two neighbouring cell centres about coordinate `u` ∈ [0, 1]
+/// over `cells` cells, and the fraction toward the upper one.
+fn cell_split(u: f64, cells: usize) -> (usize, f64) {
+    let c = (u * cells as f64 - 0.5).clamp(0.0, (cells - 1) as f64);
+    let i = (c as usize).min(cells - 2);
+    (i, c - i as f64)
 }
 
 /// The guide at one point: its cell's table seen in the point's own frame.
@@ -333,5 +371,47 @@ mod tests {
                 );
             }
         }
+    }
+
+    #[test]
+    fn skylight_interpolates_the_cells_and_rises_out_of_the_shadow() {
+        // Twilight, sun 4° below the horizon toward −x.
+        let atmosphere = Atmosphere::new(AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        let radius = medium.planet_radius_m;
+        let top_m = medium.top_radius_m - radius;
+        let sun = direction_from_az_el(270.0, -4.0);
+        let guide = SkyGuide::new(&medium, sun);
+        let above = |altitude_m: f64| DVec3::Z * (radius + altitude_m);
+        // At a cell's centre point the value is that cell's fluence / 4π.
+        for (i, k) in [(3, 28), (6, 20), (9, 30)] {
+            let cell = guide.cell(&medium, i, k);
+            let expected = cell.fluence / (4.0 * std::f64::consts::PI);
+            assert!(expected > 0.0, "cell ({i}, {k}) sees no light");
+            let got = guide.skylight(&medium, cell.origin_m);
+            assert!(
+                (got / expected - 1.0).abs() < 1e-9,
+                "cell ({i}, {k}): {got} vs {expected}"
+            );
+        }
+        // Continuous across a boundary between altitude cells (a = 4/12).
+        let boundary_m = top_m * (4.0 / ALTITUDE_CELLS as f64).powi(2);
+        let (below, over) = (
+            guide.skylight(&medium, above(boundary_m - 1.0)),
+            guide.skylight(&medium, above(boundary_m + 1.0)),
+        );
+        assert!((over / below - 1.0).abs() < 1e-3, "{below} vs {over}");
+        // Above the observer the shadow thins with height: the light grows
+        // several-fold from 0.5 to 40 km, and at 20 km the sun's side
+        // (nearer the sunlit air) sees more than the opposite side.
+        let low = guide.skylight(&medium, above(500.0));
+        let high = guide.skylight(&medium, above(40_000.0));
+        assert!(low > 0.0 && high > 5.0 * low, "{low} → {high}");
+        let tilt = |x: f64| DVec3::new(x, 0.0, 1.0).normalize() * (radius + 20_000.0);
+        let (sun_side, far_side) = (
+            guide.skylight(&medium, tilt(-0.02)),
+            guide.skylight(&medium, tilt(0.02)),
+        );
+        assert!(sun_side > 1.5 * far_side, "{sun_side} vs {far_side}");
     }
 }

@@ -55,6 +55,18 @@
 //! horizon, which no phase function about a fixed axis finds. With the sun
 //! low, sunlit points are guided too (`sky_guide_sunlit`).
 //!
+//! **Roulette and splitting by importance** (`splitting`, on with the sun
+//! below the horizon): at a real scattering of a low-sun path, the path's
+//! expected light is its weight times the guide's mean once-scattered
+//! radiance at the point ([`SkyGuide::skylight`]); relative to that at the
+//! path's start it decides roulette (below a quarter) or how many copies go
+//! on, each with its own direction (Vorba and Křivánek 2016, adjoint-driven
+//! Russian roulette and splitting, with the guide's table as the adjoint).
+//! At twilight most of the variance lies in orders ≥ 3 (90 % of it for 32 %
+//! of the light, `BENCHMARKS.md`): paths wandering in the shadow that rarely
+//! reach the brighter air high up or toward the sun, and there carry large
+//! weights.
+//!
 //! **Alternative kept as an option** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`): `shadow_samples` estimates only
 //! the segments that start in the planet's shadow through points drawn
@@ -156,6 +168,16 @@ pub struct IntegratorOptions {
     pub forced_collision_depth: u32,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
+    /// Adjoint-driven roulette and splitting (after Vorba and Křivánek
+    /// 2016) at the real scatterings of paths whose segments are estimated
+    /// through the guide's densities (`sunlight_samples` > 0): a path whose
+    /// expected light — its weight times the guide's mean once-scattered
+    /// radiance at the point ([`SkyGuide::skylight`]) — is several times
+    /// that at its start goes on as several copies, one below a quarter of
+    /// it plays roulette. Needs `russian_roulette`. Unset (the default):
+    /// on with the sun lower than [`SPLITTING_ELEVATION_DEG`] (see
+    /// [`Self::resolved`]); an integrator built directly reads unset as off.
+    pub splitting: Option<bool>,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -179,6 +201,7 @@ impl Default for IntegratorOptions {
             shadow_samples: 0,
             forced_collision_depth: 1,
             russian_roulette: true,
+            splitting: None,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }
@@ -207,6 +230,9 @@ pub const SUN_LOBE: f64 = 0.3;
 pub const HIGH_SUN_LOBE: f64 = 0.15;
 /// See [`HIGH_SUN_LOBE`].
 pub const HIGH_SUN_ELEVATION_DEG: f64 = 30.0;
+/// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
+/// is on by default.
+pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
 
 impl IntegratorOptions {
     /// Next-event points per segment ([`Self::sunlight_samples`]; unset = 0).
@@ -229,6 +255,10 @@ impl IntegratorOptions {
         Self {
             sunlight_samples: Some(self.sunlight_samples.unwrap_or(u32::from(low_sun))),
             sky_guide_sunlit: Some(self.sky_guide_sunlit.unwrap_or(low_sun)),
+            splitting: Some(
+                self.splitting
+                    .unwrap_or(sun_elevation_deg < SPLITTING_ELEVATION_DEG),
+            ),
             sun_lobe: Some(self.sun_lobe.unwrap_or(if high_sun {
                 HIGH_SUN_LOBE
             } else {
@@ -271,6 +301,10 @@ const ROULETTE_CAP_DEPTH: u32 = 64;
 /// 0.52 here, at midday 0.43 vs 0.36; bench at equal time, alternated runs:
 /// 0.86–0.95× the noise in every scene (BENCHMARKS.md).
 const ROULETTE_WEIGHT: f64 = 0.25;
+/// Paths expected to bring more than this, relative to their start, split.
+const SPLIT_WEIGHT: f64 = 2.0;
+/// Most copies of one path at one vertex.
+const MAX_SPLIT: usize = 4;
 /// Largest [`IntegratorOptions::forced_collision_depth`] accepted (the
 /// depth past which roulette caps survival at 0.9).
 pub const MAX_FORCED_COLLISION_DEPTH: u32 = ROULETTE_CAP_DEPTH;
@@ -284,6 +318,15 @@ pub const MAX_BRANCHES: usize = 8;
 type Start = (DVec3, DVec3, u32, f64);
 /// Where a path goes on: position, direction, weight.
 type Vertex = (DVec3, DVec3, Lanes);
+/// Where a path goes on from a segment.
+#[derive(Clone, Copy)]
+enum Next {
+    /// A vertex with its new direction chosen.
+    Vertex(Vertex),
+    /// A real scattering at a point of a path along a direction, weighted
+    /// up to the choice of its new direction ([`Integrator::scatter`]).
+    Scatter(DVec3, DVec3, Lanes),
+}
 /// The vertices a segment branches into.
 type Branches = [Option<Vertex>; MAX_BRANCHES];
 /// Ground vertices sit this far above the surface, m.
@@ -512,21 +555,157 @@ impl<'a> Integrator<'a> {
         radiance: &mut Lanes,
         rng: &mut Rng,
     ) {
-        let mut vertex = Some((origin, dir, beta));
+        let reference = self.importance(origin);
+        self.walk_sunlit(
+            Next::Vertex((origin, dir, beta)),
+            (depth, split, reference),
+            lanes,
+            radiance,
+            rng,
+        );
+    }
+
+    /// Expected light a path finds going on from `x`, per unit weight, up
+    /// to a constant: the guide's mean once-scattered radiance there.
+    fn importance(&self, x: DVec3) -> Option<f64> {
+        self.guide
+            .filter(|_| self.options.russian_roulette && self.options.splitting == Some(true))
+            .map(|g| g.skylight(self.medium, x))
+            .filter(|&s| s > 0.0 && s.is_finite())
+    }
+
+    /// [`Self::trace_sunlit`] from `next` after `depth` scatterings.
+    fn walk_sunlit(
+        &self,
+        next: Next,
+        (depth, split, reference): (u32, f64, Option<f64>),
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) {
+        let mut next = Some(next);
         let mut depth = depth;
-        while let Some((origin, dir, beta)) = vertex {
-            vertex = self.sunlit_segment(origin, dir, depth, &beta, lanes, radiance, rng);
-            depth += 1;
-            let Some((_, _, beta)) = &mut vertex else {
-                break;
+        while let Some(n) = next {
+            let (origin, dir, beta) = match n {
+                Next::Vertex(vertex) => vertex,
+                Next::Scatter(x, dir_in, mut beta) => {
+                    let c = self.medium.coefficients(x.length(), lanes);
+                    let copies = reference.and_then(|reference| {
+                        self.weight_window(x, &c, &mut beta, (depth, split, reference), lanes, rng)
+                    });
+                    match copies {
+                        Some(0) => break,
+                        Some(copies) => {
+                            let from = (x, dir_in, &c);
+                            let walk = (depth, split, reference);
+                            self.copies(from, beta, copies, walk, lanes, radiance, rng)
+                        }
+                        None => {
+                            // Without the guide's importance: roulette as
+                            // for any other vertex.
+                            let new_dir = self.scatter(x, dir_in, &c, &mut beta, lanes, rng);
+                            if self.options.russian_roulette
+                                && depth >= 2
+                                && !survives_roulette(&mut beta, lanes.active, depth, split, rng)
+                            {
+                                break;
+                            }
+                            (x, new_dir, beta)
+                        }
+                    }
+                }
             };
+            next = self.sunlit_segment(origin, dir, depth, &beta, lanes, radiance, rng);
+            depth += 1;
+            self.roulette_vertex(&mut next, depth, split, lanes, rng);
+        }
+    }
+
+    /// `copies` copies of a path scattered at `x` along `dir_in`
+    /// (coefficients `c`, weight `beta` before the direction's factor),
+    /// sharing its weight, each with its own direction: all but one walk on
+    /// here; the last is returned.
+    #[allow(clippy::too_many_arguments)]
+    fn copies(
+        &self,
+        (x, dir_in, c): (DVec3, DVec3, &super::medium::Coefficients),
+        beta: Lanes,
+        copies: usize,
+        walk: (u32, f64, Option<f64>),
+        lanes: &SpectralLanes,
+        radiance: &mut Lanes,
+        rng: &mut Rng,
+    ) -> Vertex {
+        let share = 1.0 / copies as f64;
+        let beta = beta.map(|b| b * share);
+        for _ in 1..copies {
+            let mut copy = beta;
+            let new_dir = self.scatter(x, dir_in, c, &mut copy, lanes, rng);
+            self.walk_sunlit(Next::Vertex((x, new_dir, copy)), walk, lanes, radiance, rng);
+        }
+        let mut last = beta;
+        let new_dir = self.scatter(x, dir_in, c, &mut last, lanes, rng);
+        (x, new_dir, last)
+    }
+
+    /// Russian roulette on `next` if it is a vertex with its direction
+    /// chosen, after `depth` scatterings (real scatterings play it in
+    /// [`Self::walk_sunlit`]); ends the path (`None`) if it loses.
+    fn roulette_vertex(
+        &self,
+        next: &mut Option<Next>,
+        depth: u32,
+        split: f64,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) {
+        if let Some(Next::Vertex((_, _, beta))) = next {
             if self.options.russian_roulette
                 && depth >= 2
                 && !survives_roulette(beta, lanes.active, depth, split, rng)
             {
-                break;
+                *next = None;
             }
         }
+    }
+
+    /// Adjoint-driven roulette and splitting at a real scattering at `x`
+    /// (coefficients `c`, weight `beta` before the direction's factor):
+    /// the path's expected light, relative to its start's, picks how many
+    /// copies go on (0 = ended; survivors' weights are divided by their
+    /// chance, copies share the weight).
+    fn weight_window(
+        &self,
+        x: DVec3,
+        c: &super::medium::Coefficients,
+        beta: &mut Lanes,
+        (depth, split, reference): (u32, f64, f64),
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<usize> {
+        let here = self.importance(x)?;
+
+        let weight = (0..lanes.active)
+            .map(|j| beta[j] * c.scattering(j))
+            .fold(0.0, f64::max);
+        let expected = split * weight * here / reference;
+        if expected < ROULETTE_WEIGHT || depth >= ROULETTE_CAP_DEPTH {
+            let mut survive = (expected / ROULETTE_WEIGHT).min(1.0);
+            if depth >= ROULETTE_CAP_DEPTH {
+                survive = survive.min(0.9);
+            }
+            if rng.uniform() >= survive {
+                return Some(0);
+            }
+            for b in beta.iter_mut() {
+                *b /= survive;
+            }
+            return Some(1);
+        }
+        if expected >= SPLIT_WEIGHT {
+            return Some((expected.floor() as usize).min(MAX_SPLIT));
+        }
+        Some(1)
     }
 
     /// One segment of [`Self::trace_sunlit`] after `depth` scatterings with
@@ -541,7 +720,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<Vertex> {
+    ) -> Option<Next> {
         let segment = self.segment(origin, dir, depth, beta, lanes, radiance)?;
         if let Some(guide) = self.guide {
             return self.guided_segment(guide, &segment, beta, lanes, radiance, rng);
@@ -551,7 +730,8 @@ impl<'a> Integrator<'a> {
         let span = segment.span;
         let n = (opts.sunlight_samples() as usize).min(MAX_SUNLIGHT_SAMPLES);
         if depth >= max_order {
-            return self.estimate_segment(&segment, beta, None, (0, 1), lanes, radiance, rng)[0];
+            return self.estimate_segment(&segment, beta, None, (0, 1), lanes, radiance, rng)[0]
+                .map(Next::Vertex);
         }
         let mu_sun = dir.dot(self.sun_direction);
         let phase_rayleigh: Lanes =
@@ -574,6 +754,7 @@ impl<'a> Integrator<'a> {
         let n = if distribution.is_some() { n } else { 0 };
         let distribution = distribution.as_ref().map(|d| d as &dyn SegmentDensity);
         self.estimate_segment(&segment, beta, distribution, (n, 1), lanes, radiance, rng)[0]
+            .map(Next::Vertex)
     }
 
     /// The light along `segment` (reached with weight `beta`) through `n`
@@ -776,7 +957,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<Vertex> {
+    ) -> Option<Next> {
         let at = guide.at(self.medium, segment.origin);
         let density = at.density(self.medium, segment.dir, segment.span);
         let n = (self
@@ -798,7 +979,7 @@ impl<'a> Integrator<'a> {
         beta: &Lanes,
         lanes: &SpectralLanes,
         rng: &mut Rng,
-    ) -> Option<Vertex> {
+    ) -> Option<Next> {
         let &Segment {
             origin,
             dir,
@@ -814,10 +995,8 @@ impl<'a> Integrator<'a> {
         while let Some(collision) = tracker.next(rng) {
             let x = origin + dir * collision.t;
             let c = self.medium.coefficients(x.length(), lanes);
-            if let Some(new_dir) =
-                self.collide(x, dir, &c, collision.majorant, &mut beta, lanes, rng)
-            {
-                return Some((x, new_dir, beta));
+            if real_scattering(&c, collision.majorant, &mut beta, lanes, rng) {
+                return Some(Next::Scatter(x, dir, beta));
             }
         }
         let albedo = self.medium.ground_albedo;
@@ -826,11 +1005,23 @@ impl<'a> Integrator<'a> {
         }
         // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
         let normal = (origin + dir * span.t_exit).normalize();
-        Some((
+        Some(Next::Vertex((
             ground_point(self.medium, normal),
             cosine_sample_hemisphere(normal, rng),
             beta.map(|b| b * albedo),
-        ))
+        )))
+    }
+
+    /// `next` with its direction chosen (one copy, no splitting).
+    fn resolve(&self, next: Next, lanes: &SpectralLanes, rng: &mut Rng) -> Vertex {
+        match next {
+            Next::Vertex(vertex) => vertex,
+            Next::Scatter(x, dir, mut beta) => {
+                let c = self.medium.coefficients(x.length(), lanes);
+                let new_dir = self.scatter(x, dir, &c, &mut beta, lanes, rng);
+                (x, new_dir, beta)
+            }
+        }
     }
 
     /// Forced collision: on a segment that leaves the atmosphere after
@@ -876,23 +1067,27 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         rng: &mut Rng,
     ) -> Option<DVec3> {
-        let p_scatter = ((0..lanes.active)
-            .map(|j| c.scattering(j) / (majorant - c.absorption[j]).max(1e-300))
-            .sum::<f64>()
-            / lanes.active as f64)
-            .clamp(0.0, 1.0);
-        if rng.uniform() < p_scatter {
-            let (new_dir, pdf) = self.sample_scatter_direction(x, dir, c, lanes, rng);
-            let mu = dir.dot(new_dir);
-            for (j, b) in beta.iter_mut().enumerate() {
-                *b *= self.scattering_phase(c, lanes, j, mu) / (majorant * p_scatter * pdf);
-            }
-            return Some(new_dir);
-        }
+        real_scattering(c, majorant, beta, lanes, rng)
+            .then(|| self.scatter(x, dir, c, beta, lanes, rng))
+    }
+
+    /// A new direction for a path along `dir` scattered at `x`
+    /// (coefficients `c`), weighting `beta` by σ_s p/pdf.
+    fn scatter(
+        &self,
+        x: DVec3,
+        dir: DVec3,
+        c: &super::medium::Coefficients,
+        beta: &mut Lanes,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> DVec3 {
+        let (new_dir, pdf) = self.sample_scatter_direction(x, dir, c, lanes, rng);
+        let mu = dir.dot(new_dir);
         for (j, b) in beta.iter_mut().enumerate() {
-            *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
+            *b *= self.scattering_phase(c, lanes, j, mu) / pdf;
         }
-        None
+        new_dir
     }
 
     /// The sun's disc seen along `dir` through transmittance `beta`.
@@ -1053,7 +1248,8 @@ impl<'a> Integrator<'a> {
                     .and_then(|segment| {
                         self.guided_segment(guide, &segment, &beta, lanes, radiance, rng)
                     });
-                let Some(vertex) = next else { break };
+                let Some(next) = next else { break };
+                let vertex = self.resolve(next, lanes, rng);
                 (origin, dir, beta) = vertex;
                 depth += 1;
                 scattered = true;
@@ -1181,6 +1377,34 @@ fn survives_roulette(
     true
 }
 
+/// The choice at a tentative collision (coefficients `c`, under
+/// `majorant`) of [`Integrator::collide`]: whether it is a real scattering,
+/// weighting `beta` by 1/(σ̄ P_s) if so (the direction's factor is
+/// [`Integrator::scatter`]'s), else by (σ̄ − σ_t)/(σ̄ (1 − P_s)).
+fn real_scattering(
+    c: &super::medium::Coefficients,
+    majorant: f64,
+    beta: &mut Lanes,
+    lanes: &SpectralLanes,
+    rng: &mut Rng,
+) -> bool {
+    let p_scatter = ((0..lanes.active)
+        .map(|j| c.scattering(j) / (majorant - c.absorption[j]).max(1e-300))
+        .sum::<f64>()
+        / lanes.active as f64)
+        .clamp(0.0, 1.0);
+    if rng.uniform() < p_scatter {
+        for b in beta.iter_mut() {
+            *b /= majorant * p_scatter;
+        }
+        return true;
+    }
+    for (j, b) in beta.iter_mut().enumerate() {
+        *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
+    }
+    false
+}
+
 /// Two unit vectors completing `n` to a right-handed orthonormal basis
 /// (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
 pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
@@ -1215,27 +1439,40 @@ mod tests {
     fn unset_choices_follow_the_sun_and_set_ones_stay() {
         let auto = IntegratorOptions::default();
         assert_eq!(
-            (auto.sunlight_samples, auto.sun_lobe, auto.sky_guide_sunlit),
-            (None, None, None)
+            (
+                auto.sunlight_samples,
+                auto.sun_lobe,
+                auto.sky_guide_sunlit,
+                auto.splitting
+            ),
+            (None, None, None, None)
         );
         assert_eq!((auto.sunlight_samples(), auto.sun_lobe()), (0, SUN_LOBE));
-        for (elevation_deg, samples, lobe) in [
-            (-4.0, 1, SUN_LOBE),
-            (2.0, 1, SUN_LOBE),
-            (2.9, 1, SUN_LOBE),
-            (3.0, 0, SUN_LOBE),
-            (30.0, 0, SUN_LOBE),
-            (30.1, 0, HIGH_SUN_LOBE),
-            (45.0, 0, HIGH_SUN_LOBE),
+        for (elevation_deg, samples, lobe, splitting) in [
+            (-4.0, 1, SUN_LOBE, true),
+            (-0.1, 1, SUN_LOBE, true),
+            (0.0, 1, SUN_LOBE, false),
+            (2.0, 1, SUN_LOBE, false),
+            (2.9, 1, SUN_LOBE, false),
+            (3.0, 0, SUN_LOBE, false),
+            (30.0, 0, SUN_LOBE, false),
+            (30.1, 0, HIGH_SUN_LOBE, false),
+            (45.0, 0, HIGH_SUN_LOBE, false),
         ] {
             let resolved = auto.resolved(elevation_deg);
             assert_eq!(
                 (
                     resolved.sunlight_samples,
                     resolved.sun_lobe,
-                    resolved.sky_guide_sunlit
+                    resolved.sky_guide_sunlit,
+                    resolved.splitting
                 ),
-                (Some(samples), Some(lobe), Some(samples == 1)),
+                (
+                    Some(samples),
+                    Some(lobe),
+                    Some(samples == 1),
+                    Some(splitting)
+                ),
                 "{elevation_deg}°"
             );
             assert_eq!(
@@ -1243,16 +1480,18 @@ mod tests {
                     sunlight_samples: None,
                     sun_lobe: None,
                     sky_guide_sunlit: None,
+                    splitting: None,
                     ..resolved
                 },
                 auto
             );
         }
-        for (samples, lobe, sunlit) in [(0, 0.0, true), (3, 0.5, false)] {
+        for (samples, lobe, sunlit, splitting) in [(0, 0.0, true, true), (3, 0.5, false, false)] {
             let options = IntegratorOptions {
                 sunlight_samples: Some(samples),
                 sun_lobe: Some(lobe),
                 sky_guide_sunlit: Some(sunlit),
+                splitting: Some(splitting),
                 ..IntegratorOptions::default()
             };
             assert_eq!(options.resolved(-4.0), options);
