@@ -594,10 +594,10 @@ impl<'a> Integrator<'a> {
                         self.weight_window(x, &c, &mut beta, (depth, split, reference), lanes, rng)
                     });
                     match copies {
-                        Some(0) => break,
-                        Some(copies) => {
+                        Some((0, _)) => break,
+                        Some((copies, reference)) => {
                             let from = (x, dir_in, &c);
-                            let walk = (depth, split, reference);
+                            let walk = (depth, split, Some(reference));
                             self.copies(from, beta, copies, walk, lanes, radiance, rng)
                         }
                         None => {
@@ -671,9 +671,13 @@ impl<'a> Integrator<'a> {
 
     /// Adjoint-driven roulette and splitting at a real scattering at `x`
     /// (coefficients `c`, weight `beta` before the direction's factor):
-    /// the path's expected light, relative to its start's, picks how many
-    /// copies go on (0 = ended; survivors' weights are divided by their
-    /// chance, copies share the weight).
+    /// the path's expected light relative to `reference` (its start's)
+    /// picks how many copies go on (0 = ended; survivors' weights are
+    /// divided by their chance, copies share the weight), returned with the
+    /// copies' reference. Where the cap leaves each copy at or above the
+    /// splitting threshold, their reference rises to their expected light,
+    /// so a start with next to no light (where the guide's table fades to
+    /// zero) cannot make every later vertex split again.
     fn weight_window(
         &self,
         x: DVec3,
@@ -682,9 +686,8 @@ impl<'a> Integrator<'a> {
         (depth, split, reference): (u32, f64, f64),
         lanes: &SpectralLanes,
         rng: &mut Rng,
-    ) -> Option<usize> {
+    ) -> Option<(usize, f64)> {
         let here = self.importance(x)?;
-
         let weight = (0..lanes.active)
             .map(|j| beta[j] * c.scattering(j))
             .fold(0.0, f64::max);
@@ -695,17 +698,24 @@ impl<'a> Integrator<'a> {
                 survive = survive.min(0.9);
             }
             if rng.uniform() >= survive {
-                return Some(0);
+                return Some((0, reference));
             }
             for b in beta.iter_mut() {
                 *b /= survive;
             }
-            return Some(1);
+            return Some((1, reference));
         }
         if expected >= SPLIT_WEIGHT {
-            return Some((expected.floor() as usize).min(MAX_SPLIT));
+            let copies = (expected.floor() as usize).min(MAX_SPLIT);
+            let each = expected / copies as f64;
+            let lifted = if each >= SPLIT_WEIGHT {
+                reference * each
+            } else {
+                reference
+            };
+            return Some((copies, lifted));
         }
-        Some(1)
+        Some((1, reference))
     }
 
     /// One segment of [`Self::trace_sunlit`] after `depth` scatterings with
@@ -1497,5 +1507,63 @@ mod tests {
             assert_eq!(options.resolved(-4.0), options);
             assert_eq!(options.resolved(45.0), options);
         }
+    }
+
+    #[test]
+    fn the_weight_window_splits_within_its_cap_and_roulettes_dim_paths() {
+        use crate::atmosphere::{Atmosphere, AtmosphereParams};
+        let atmosphere = Atmosphere::new(AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        let sun = super::super::direction_from_az_el(270.0, -4.0);
+        let guide = SkyGuide::new(&medium, sun);
+        let options = IntegratorOptions {
+            splitting: Some(true),
+            ..IntegratorOptions::default()
+        };
+        let integrator = Integrator::new(&medium, &options, sun).with_sky_guide(&guide);
+        let lanes = SpectralLanes::new([450.0, 520.0, 590.0, 660.0], LANES, &medium, false);
+        let x = DVec3::new(0.0, 0.0, medium.planet_radius_m + 20_000.0);
+        let c = medium.coefficients(x.length(), &lanes);
+        let here = integrator
+            .importance(x)
+            .expect("light reaches 20 km at twilight");
+        let sigma = (0..LANES).map(|j| c.scattering(j)).fold(0.0, f64::max);
+        let mut rng = Rng::new(1, 2);
+        // Weights for a given expected light relative to a reference of 1.
+        let beta_for = |expected: f64| [expected / (sigma * here); LANES];
+        let window = |beta: &mut Lanes, reference: f64, rng: &mut Rng| {
+            integrator
+                .weight_window(x, &c, beta, (3, 1.0, reference), &lanes, rng)
+                .unwrap()
+        };
+        // Inside the window: one copy, nothing changes.
+        let mut beta = beta_for(1.0);
+        assert_eq!(window(&mut beta, 1.0, &mut rng), (1, 1.0));
+        assert_eq!(beta, beta_for(1.0));
+        // 3× the start's light: three copies, same reference.
+        assert_eq!(window(&mut beta_for(3.0), 1.0, &mut rng), (3, 1.0));
+        // A start with next to no light: the cap holds, and the copies'
+        // reference rises to their expected light.
+        let (copies, reference) = window(&mut beta_for(1.0), 1e-30, &mut rng);
+        assert_eq!(copies, MAX_SPLIT);
+        let each = 1e30 / MAX_SPLIT as f64;
+        assert!((reference / (each * 1e-30) - 1.0).abs() < 1e-9);
+        let (again, _) = window(&mut beta_for(1.0 / MAX_SPLIT as f64), reference, &mut rng);
+        assert!(again <= 1, "copies split again: {again}");
+        // A tenth of the start's light: survives 40 % of the time, with
+        // its weight divided by 0.4.
+        let trials = 20_000;
+        let mut survived = 0;
+        for _ in 0..trials {
+            let mut beta = beta_for(0.1);
+            let (copies, _) = window(&mut beta, 1.0, &mut rng);
+            if copies == 1 {
+                survived += 1;
+                assert!((beta[0] / beta_for(0.1)[0] - 2.5).abs() < 1e-9);
+            }
+        }
+        let rate = f64::from(survived) / f64::from(trials);
+        let sigma_rate = (0.4 * 0.6 / f64::from(trials)).sqrt();
+        assert!((rate - 0.4).abs() < 5.0 * sigma_rate, "survival {rate}");
     }
 }
