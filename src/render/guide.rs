@@ -26,8 +26,8 @@
 //! the integrator's roulette and splitting (`splitting`).
 //!
 //! Used through the options `sky_guide`, `shadow_samples`,
-//! `sunlight_samples` and `splitting` of [`super::IntegratorOptions`]. The last is on by
-//! default with the sun below [`super::integrator::LOW_SUN_ELEVATION_DEG`],
+//! `sunlight_samples` and `splitting` of [`super::IntegratorOptions`].
+//! `sunlight_samples` is on by default with the sun below [`super::integrator::LOW_SUN_ELEVATION_DEG`],
 //! where its segment estimates, through this guide's cached densities, win
 //! at equal time (`BENCHMARKS.md`, session 8); `sky_guide` draws a quarter
 //! of the directions in the shadow from the table by default (second-order
@@ -75,7 +75,8 @@ struct PointCell {
     /// Cumulative probability over the direction cells (∝ L₁ × solid angle);
     /// empty where no sunlight reaches any direction.
     cdf: Vec<f64>,
-    /// ∫ L₁ dω over the sphere per unit irradiance (the table's total), sr⁻¹·sr.
+    /// ∫ L₁ dω over the sphere per unit irradiance (the table's total;
+    /// dimensionless, sr⁻¹ × sr).
     fluence: f64,
     /// Distance densities of the representative rays, built on first use.
     rays: DensitySlots,
@@ -112,13 +113,8 @@ impl SkyGuide {
 
     /// The guide at point `x` (m, planet-centred, inside the atmosphere).
     pub fn at(&self, medium: &Medium, x: DVec3) -> GuideAt<'_> {
-        let r = x.length();
-        let top_m = self.top_radius_m - self.planet_radius_m;
-        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
+        let (a, s) = self.coordinates(x);
         let i = ((a * ALTITUDE_CELLS as f64) as usize).min(ALTITUDE_CELLS - 1);
-        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
-        let s =
-            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
         let k = ((s * SUN_ZENITH_CELLS as f64) as usize).min(SUN_ZENITH_CELLS - 1);
         let cell = self.cell(medium, i, k);
         GuideAt {
@@ -163,11 +159,10 @@ impl SkyGuide {
             let mass = light * frame.cell_solid_angle(DIRECTION_GRID, d);
             cdf.push(cdf[d] + if mass.is_finite() { mass } else { 0.0 });
         }
-        let total = cdf[DIRECTION_GRID.cells()];
-        let fluence = total;
-        if total > 0.0 {
+        let fluence = cdf[DIRECTION_GRID.cells()];
+        if fluence > 0.0 {
             for c in &mut cdf {
-                *c /= total;
+                *c /= fluence;
             }
         } else {
             cdf.clear();
@@ -181,6 +176,19 @@ impl SkyGuide {
         }
     }
 
+    /// The table coordinates of `x` (m, planet-centred), each in [0, 1]:
+    /// altitude (square-root spacing) and solar zenith (the band coordinate
+    /// about the local horizon).
+    fn coordinates(&self, x: DVec3) -> (f64, f64) {
+        let r = x.length();
+        let top_m = self.top_radius_m - self.planet_radius_m;
+        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
+        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
+        let s =
+            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
+        (a, s)
+    }
+
     /// The cell of (altitude `i`, solar zenith `k`), built on first use.
     fn cell(&self, medium: &Medium, i: usize, k: usize) -> &PointCell {
         self.cells[i * SUN_ZENITH_CELLS + k].get_or_init(|| self.build(medium, i, k))
@@ -190,12 +198,7 @@ impl SkyGuide {
     /// irradiance, sr⁻¹ (the tables' fluence over 4π, interpolated bilinearly
     /// between cell centres).
     pub fn skylight(&self, medium: &Medium, x: DVec3) -> f64 {
-        let r = x.length();
-        let top_m = self.top_radius_m - self.planet_radius_m;
-        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
-        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
-        let s =
-            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
+        let (a, s) = self.coordinates(x);
         let (i, fa) = cell_split(a, ALTITUDE_CELLS);
         let (k, fs) = cell_split(s, SUN_ZENITH_CELLS);
         let f = |i: usize, k: usize| self.cell(medium, i, k).fluence;

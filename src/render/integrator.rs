@@ -585,6 +585,7 @@ impl<'a> Integrator<'a> {
     ) {
         let mut next = Some(next);
         let mut depth = depth;
+        let mut reference = reference;
         while let Some(n) = next {
             let (origin, dir, beta) = match n {
                 Next::Vertex(vertex) => vertex,
@@ -595,9 +596,11 @@ impl<'a> Integrator<'a> {
                     });
                     match copies {
                         Some((0, _)) => break,
-                        Some((copies, reference)) => {
+                        Some((copies, copies_reference)) => {
+                            // This path goes on as the last copy.
+                            reference = Some(copies_reference);
                             let from = (x, dir_in, &c);
-                            let walk = (depth, split, Some(reference));
+                            let walk = (depth, split, reference);
                             self.copies(from, beta, copies, walk, lanes, radiance, rng)
                         }
                         None => {
