@@ -496,7 +496,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
                     );
                 }
                 let discarded: u64 = spectrum.iter().map(|s| s.discarded).sum();
-                outln!("# {discarded} samples discarded (not finite and non-negative)");
+                outln!("# {discarded} samples discarded (not finite, or negative without the control variate)");
             }
             Ok(())
         }

@@ -3,6 +3,7 @@
 use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::sun;
+use skyrender::render::control::RadianceTable;
 use skyrender::render::guide::SkyGuide;
 use skyrender::render::sunlight::CameraDensities;
 use skyrender::render::{
@@ -562,5 +563,61 @@ fn sky_guide_is_unbiased() {
                 assert_agree(&what, run(options, 10_000), (reference, reference_se));
             }
         }
+    }
+}
+
+#[test]
+fn the_control_variate_is_unbiased() {
+    // The once-scattered light as a control (its exact phase integral added
+    // at every scattering, the paths going on carrying L − A) must match
+    // plain delta tracking: at sunset, where
+    // it is on by default (segments through the guide's densities), by day
+    // (delta-tracked segments) and at twilight (with splitting).
+    let atmosphere = Atmosphere::new(AtmosphereParams::default());
+    let medium = Medium::new(&atmosphere);
+    let lanes = unit_sun_lanes(&medium, [440.0, 520.0, 600.0, 680.0]);
+    let radius = atmosphere.params.planet_radius_m;
+    let origin = DVec3::new(0.0, 0.0, radius + 2.0);
+    let cases = [
+        // (sun az/el, view az/el)
+        ((270.0, 2.0), (265.0, 3.0)),
+        ((270.0, 2.0), (90.0, 45.0)),
+        ((180.0, 30.0), (200.0, 20.0)),
+        ((270.0, -4.0), (250.0, 10.0)),
+    ];
+    for ((sun_az, sun_el), (az, el)) in cases {
+        let sun_dir = direction_from_az_el(sun_az, sun_el);
+        let view = direction_from_az_el(az, el);
+        let camera = CameraDensities::new(&medium, origin, sun_dir);
+        let guide = SkyGuide::new(&medium, sun_dir);
+        let table = RadianceTable::new(
+            medium.planet_radius_m,
+            medium.top_radius_m,
+            sun_dir,
+            (360.0, 830.0),
+        );
+        let run = |options: IntegratorOptions, paths: u32| {
+            let integrator = Integrator::new(&medium, &options, sun_dir)
+                .with_camera_densities(&camera)
+                .with_sky_guide(&guide)
+                .with_control(&table);
+            estimate(paths, |rng| integrator.radiance(origin, view, &lanes, rng))
+        };
+        let reference = run(
+            IntegratorOptions {
+                camera_samples: 0,
+                sky_guide: 0.0,
+                forced_collision_depth: 0,
+                ..IntegratorOptions::default()
+            },
+            40_000,
+        );
+        let controlled = IntegratorOptions {
+            control_variate: Some(true),
+            ..IntegratorOptions::default().resolved(sun_el)
+        };
+        assert_eq!(controlled.max_scattering_order, None);
+        let what = format!("sun {sun_el}°, view ({az}, {el}), all orders");
+        assert_agree(&what, run(controlled, 10_000), reference);
     }
 }

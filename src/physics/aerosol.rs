@@ -173,6 +173,39 @@ pub fn sample_henyey_greenstein(u: f64, g: f64) -> f64 {
 }
 
 impl PhaseModel {
+    /// Legendre moments k_l = 2π ∫ p(μ) P_l(μ) dμ, l = 0..N (k₀ = 1): by
+    /// the Funk–Hecke theorem, ∫ p(ω·ω') Y_lm(ω') dω' = k_l Y_lm(ω) for any
+    /// spherical harmonic of degree l. Henyey–Greenstein's are g^l (its
+    /// generating function); Cornette–Shanks = 3(1+μ²)/(2(2+g²)) × HG, and
+    /// μ²'s moments against HG follow from the recurrence
+    /// (2l+1) μ P_l = (l+1) P_{l+1} + l P_{l−1}.
+    pub fn legendre_moments<const N: usize>(self, g: f64) -> [f64; N] {
+        let hg = |l: i64| if l < 0 { 0.0 } else { g.powi(l as i32) };
+        std::array::from_fn(|l| match self {
+            Self::HenyeyGreenstein => hg(l as i64),
+            Self::CornetteShanks => {
+                let l = l as i64;
+                let lf = l as f64;
+                // 2π ∫ μ² HG P_l dμ.
+                let mu2 = ((lf + 1.0) * (lf + 2.0) / (2.0 * lf + 3.0) * hg(l + 2)
+                    + ((lf + 1.0).powi(2) / (2.0 * lf + 3.0)
+                        + if l > 0 {
+                            lf * lf / (2.0 * lf - 1.0)
+                        } else {
+                            0.0
+                        })
+                        * hg(l)
+                    + if l > 1 {
+                        lf * (lf - 1.0) / (2.0 * lf - 1.0) * hg(l - 2)
+                    } else {
+                        0.0
+                    })
+                    / (2.0 * lf + 1.0);
+                1.5 / (2.0 + g * g) * (hg(l) + mu2)
+            }
+        })
+    }
+
     pub fn eval(self, mu: f64, g: f64) -> f64 {
         match self {
             Self::HenyeyGreenstein => henyey_greenstein(mu, g),
@@ -199,6 +232,39 @@ impl PhaseModel {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn legendre_moments_match_quadrature() {
+        // k_l = 2π ∫ p(μ) P_l(μ) dμ by the midpoint rule on 200 000 points.
+        for model in [PhaseModel::HenyeyGreenstein, PhaseModel::CornetteShanks] {
+            for g in [0.0, 0.3, 0.7] {
+                let k: [f64; 7] = model.legendre_moments(g);
+                let n = 200_000_u32;
+                let mut q = [0.0; 7];
+                for i in 0..n {
+                    let mu = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(n);
+                    let w = 2.0 * PI * model.eval(mu, g) * 2.0 / f64::from(n);
+                    let (mut p0, mut p1) = (1.0, mu);
+                    q[0] += w;
+                    q[1] += w * mu;
+                    for (l, ql) in q.iter_mut().enumerate().skip(2) {
+                        let lf = l as f64;
+                        let p2 = ((2.0 * lf - 1.0) * mu * p1 - (lf - 1.0) * p0) / lf;
+                        *ql += w * p2;
+                        (p0, p1) = (p1, p2);
+                    }
+                }
+                for l in 0..7 {
+                    assert!(
+                        (k[l] - q[l]).abs() < 1e-6,
+                        "{model:?} g {g} l {l}: {} vs {}",
+                        k[l],
+                        q[l]
+                    );
+                }
+            }
+        }
+    }
 
     #[test]
     fn elterman_optical_depth_at_340_nm() {

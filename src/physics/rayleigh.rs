@@ -75,6 +75,13 @@ pub fn phase(mu: f64, gamma: f64) -> f64 {
     3.0 / (16.0 * PI * (1.0 + 2.0 * gamma)) * ((1.0 + 3.0 * gamma) + (1.0 - gamma) * mu * mu)
 }
 
+/// The second Legendre moment k₂ = 2π ∫ p(μ) P₂(μ) dμ of [`phase`] (k₀ = 1,
+/// every other moment 0): with p ∝ A + Bμ² and ∫ μ² P₂ dμ = 4/15,
+/// k₂ = (1 − γ)/(10 (1 + 2γ)).
+pub fn phase_legendre_2(gamma: f64) -> f64 {
+    (1.0 - gamma) / (10.0 * (1.0 + 2.0 * gamma))
+}
+
 /// Sample the scattering-angle cosine exactly by inverting the CDF.
 ///
 /// With p(μ) = c (A + B μ²) on [−1, 1], c = 3/(8(1+2γ)), A = 1+3γ, B = 1−γ,

@@ -54,7 +54,8 @@ pub struct Film {
     /// Passes the row took under the plan (each of a pixel's m samples has
     /// weight 1, so the pixel's weight is the row's plus (m − 1) per pass).
     pub(crate) row_planned_passes: Vec<u32>,
-    /// Samples discarded as non-finite or negative.
+    /// Samples discarded as non-finite (or negative without the control
+    /// variate).
     pub discarded: u64,
 }
 

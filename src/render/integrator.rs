@@ -83,6 +83,10 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
+use super::control::{
+    index as control_index, CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX,
+    NODES,
+};
 use super::guide::SkyGuide;
 use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
@@ -178,6 +182,15 @@ pub struct IntegratorOptions {
     /// on with the sun lower than [`SPLITTING_ELEVATION_DEG`] (see
     /// [`Self::resolved`]); an integrator built directly reads unset as off.
     pub splitting: Option<bool>,
+    /// The once-scattered light as a control variate ([`super::control`]):
+    /// every real scattering adds the exact phase-function integral of a
+    /// tabulated approximation A of the once-scattered light arriving
+    /// there, and the path going on estimates only L − A, which lacks A's
+    /// sharp aureole and horizon. Unset (the default): on with the sun
+    /// between [`CONTROL_ELEVATION_DEG`]'s bounds above the observer's
+    /// horizon (see [`Self::resolved`]), where it wins at equal time; an
+    /// integrator built directly reads unset as off.
+    pub control_variate: Option<bool>,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -202,6 +215,7 @@ impl Default for IntegratorOptions {
             forced_collision_depth: 1,
             russian_roulette: true,
             splitting: None,
+            control_variate: None,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }
@@ -230,6 +244,12 @@ pub const SUN_LOBE: f64 = 0.3;
 pub const HIGH_SUN_LOBE: f64 = 0.15;
 /// See [`HIGH_SUN_LOBE`].
 pub const HIGH_SUN_ELEVATION_DEG: f64 = 30.0;
+/// Sun elevations (at the observer, from, to) with
+/// [`IntegratorOptions::control_variate`] on by default. Measured at fixed
+/// passes (`BENCHMARKS.md`, session 13): at 2° 0.67× the variance for
+/// 1.14× the time per pass; at −1°, 5° and 10° 0.85–0.87× the variance,
+/// no better than the cost; at −4° and 45° none.
+pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
 /// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
 /// is on by default.
 pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
@@ -259,6 +279,9 @@ impl IntegratorOptions {
                 self.splitting
                     .unwrap_or(sun_elevation_deg < SPLITTING_ELEVATION_DEG),
             ),
+            control_variate: Some(self.control_variate.unwrap_or(
+                (CONTROL_ELEVATION_DEG.0..CONTROL_ELEVATION_DEG.1).contains(&sun_elevation_deg),
+            )),
             sun_lobe: Some(self.sun_lobe.unwrap_or(if high_sun {
                 HIGH_SUN_LOBE
             } else {
@@ -310,6 +333,11 @@ const MAX_SPLIT: usize = 4;
 pub const MAX_FORCED_COLLISION_DEPTH: u32 = ROULETTE_CAP_DEPTH;
 /// Most in-scattering points on one segment.
 pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
+/// Zenith × azimuth strata of the directions a control cell is projected
+/// from.
+const CONTROL_DIRECTIONS: (usize, usize) = (32, 16);
+/// Seed of the control cells' own random numbers.
+const CONTROL_SEED: u64 = 0xc047_a01e;
 /// Most branches of a camera path.
 pub const MAX_BRANCHES: usize = 8;
 
@@ -320,12 +348,13 @@ type Start = (DVec3, DVec3, u32, f64);
 type Vertex = (DVec3, DVec3, Lanes);
 /// Where a path goes on from a segment.
 #[derive(Clone, Copy)]
-enum Next {
+enum Next<'t> {
     /// A vertex with its new direction chosen.
     Vertex(Vertex),
     /// A real scattering at a point of a path along a direction, weighted
     /// up to the choice of its new direction ([`Integrator::scatter`]).
-    Scatter(DVec3, DVec3, Lanes),
+    /// With the control variate on, its expansions at the point.
+    Scatter(DVec3, DVec3, Lanes, Option<ControlAt<'t>>),
 }
 /// The vertices a segment branches into.
 type Branches = [Option<Vertex>; MAX_BRANCHES];
@@ -343,6 +372,35 @@ pub struct Integrator<'a> {
     bounds: Bounds,
     camera: Option<&'a CameraDensities>,
     guide: Option<&'a SkyGuide>,
+    control: Option<&'a RadianceTable>,
+    /// The aerosol phase function's Legendre moments k_0..k_L.
+    aerosol_moments: [f64; L_MAX + 1],
+}
+
+/// The control variate at one scattering point: the point's frame and the
+/// expansions drawn for its lanes ([`RadianceTable::pick`]).
+#[derive(Clone, Copy)]
+struct ControlAt<'t> {
+    frame: Frame,
+    picked: Picked<'t, LANES>,
+}
+
+impl ControlAt<'_> {
+    /// Subtracts beta × A(dir): the path going on along `dir` from this
+    /// point with weight `beta` now estimates L − A.
+    fn subtract(&self, lanes: &SpectralLanes, dir: DVec3, beta: &Lanes, radiance: &mut Lanes) {
+        let y = self.frame.basis(dir);
+        for j in 0..LANES {
+            let a: f64 = self
+                .picked
+                .expansion(j)
+                .iter()
+                .zip(&y)
+                .map(|(a, y)| a * y)
+                .sum();
+            radiance[j] -= beta[j] * lanes.sun_irradiance[j] * a;
+        }
+    }
 }
 
 /// A density of in-scattering distances along one path segment.
@@ -389,7 +447,130 @@ impl<'a> Integrator<'a> {
             },
             camera: None,
             guide: None,
+            control: None,
+            aerosol_moments: medium.aerosol_phase.legendre_moments(medium.aerosol_g),
         }
+    }
+
+    /// Uses `table` as the diffuse light's control variate (see
+    /// [`IntegratorOptions::control_variate`]).
+    #[must_use]
+    pub fn with_control(mut self, table: &'a RadianceTable) -> Self {
+        if self.options.control_variate == Some(true) && self.options.max_scattering_order.is_none()
+        {
+            self.control = Some(table);
+        }
+        self
+    }
+
+    /// Whether single estimates may be negative (with the control variate
+    /// on: its mean is not); otherwise a negative one is a defect.
+    pub fn signed_estimates(&self) -> bool {
+        self.control.is_some()
+    }
+
+    /// The control variate at a scattering point `x` for `lanes`, if on.
+    fn control_at(&self, x: DVec3, lanes: &SpectralLanes, rng: &mut Rng) -> Option<ControlAt<'a>> {
+        let table = self.control?;
+        let u = (rng.uniform(), rng.uniform());
+        let picked = table.pick(x, &lanes.wavelengths_nm, u, |i, k| {
+            self.project_cell(table, i, k)
+        });
+        Some(ControlAt {
+            frame: table.frame(x),
+            picked,
+        })
+    }
+
+    /// Adds beta × ∫ σ_s p(dir·ω') A(ω') dω' for a path along `dir` that
+    /// scatters at the point of `at` (coefficients `c`) with weight `beta`
+    /// before its direction's factor: Σ_l (σ_R k_l^R + σ_A k_l^A) Σ_m a_lm
+    /// Y_lm(dir), exact by the Funk–Hecke theorem.
+    fn control_in(
+        &self,
+        at: &ControlAt<'_>,
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        dir: DVec3,
+        beta: &Lanes,
+        radiance: &mut Lanes,
+    ) {
+        let y = at.frame.basis(dir);
+        for j in 0..LANES {
+            let a = at.picked.expansion(j);
+            let rayleigh_k2 = rayleigh::phase_legendre_2(lanes.rayleigh_gamma[j]);
+            let mut sum = 0.0;
+            for (l, aerosol_k) in self.aerosol_moments.iter().enumerate() {
+                let rayleigh_k = match l {
+                    0 => 1.0,
+                    2 => rayleigh_k2,
+                    _ => 0.0,
+                };
+                let degree: f64 = (control_index(l, 0)..=control_index(l, l))
+                    .map(|i| a[i] * y[i])
+                    .sum();
+                sum += (c.rayleigh[j] * rayleigh_k + c.aerosol_scattering[j] * aerosol_k) * degree;
+            }
+            radiance[j] += beta[j] * lanes.sun_irradiance[j] * sum;
+        }
+    }
+
+    /// The control's expansions for the table's cell (altitude `i`, solar
+    /// zenith `k`): the once-scattered light (and the ground's direct
+    /// reflection) arriving at the cell's central point, per unit
+    /// irradiance at the table's wavelength nodes, projected on the basis
+    /// from next-event estimates along [`CONTROL_DIRECTIONS`] stratified
+    /// directions. Single scattering holds the sharp part of the light a
+    /// point sees (the aureole, the horizon), which is what the control
+    /// takes out of the paths (`BENCHMARKS.md`, session 13); the random
+    /// numbers are the cell's own, so the table does not depend on the
+    /// render's.
+    fn project_cell(&self, table: &RadianceTable, i: usize, k: usize) -> CellCoefficients {
+        let options = IntegratorOptions {
+            control_variate: Some(false),
+            max_scattering_order: Some(2),
+            ..self.options.clone()
+        };
+        let mut single = Integrator::new(self.medium, &options, self.sun_direction);
+        single.guide = self.guide;
+        let origin = table.cell_point(i, k);
+        let frame = table.frame(origin);
+        let (nt, np) = CONTROL_DIRECTIONS;
+        let weight = 4.0 * PI / (nt * np) as f64;
+        let mut rng = Rng::new(CONTROL_SEED, (i * 1000 + k) as u64);
+        let sets: Vec<SpectralLanes> = (0..NODES.div_ceil(LANES))
+            .map(|set| {
+                let nm = std::array::from_fn(|j| table.node_nm((set * LANES + j).min(NODES - 1)));
+                SpectralLanes::new(nm, LANES, self.medium, true)
+            })
+            .collect();
+        let mut coefficients = [[0.0; COEFFICIENTS]; NODES];
+        for it in 0..nt {
+            for ip in 0..np {
+                let cos_theta = -1.0 + 2.0 * (it as f64 + rng.uniform()) / nt as f64;
+                let phi = PI * (ip as f64 + rng.uniform()) / np as f64;
+                let dir = frame.direction(cos_theta, phi);
+                let y = frame.basis(dir);
+                for (set, lanes) in sets.iter().enumerate() {
+                    let mut radiance = [0.0; LANES];
+                    let from = (origin, dir, 1, 1.0);
+                    if options.sunlight_samples() > 0 && single.guide.is_some() {
+                        single.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
+                    } else {
+                        single.trace(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
+                    }
+                    for (j, l) in radiance.iter().enumerate() {
+                        let n = set * LANES + j;
+                        if n < NODES && l.is_finite() {
+                            for (c, y) in coefficients[n].iter_mut().zip(&y) {
+                                *c += weight * l * y;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        coefficients
     }
 
     /// Uses `guide` for scattering directions (see
@@ -577,7 +758,7 @@ impl<'a> Integrator<'a> {
     /// [`Self::trace_sunlit`] from `next` after `depth` scatterings.
     fn walk_sunlit(
         &self,
-        next: Next,
+        next: Next<'a>,
         (depth, split, reference): (u32, f64, Option<f64>),
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
@@ -589,7 +770,7 @@ impl<'a> Integrator<'a> {
         while let Some(n) = next {
             let (origin, dir, beta) = match n {
                 Next::Vertex(vertex) => vertex,
-                Next::Scatter(x, dir_in, mut beta) => {
+                Next::Scatter(x, dir_in, mut beta, control) => {
                     let c = self.medium.coefficients(x.length(), lanes);
                     let copies = reference.and_then(|reference| {
                         self.weight_window(x, &c, &mut beta, (depth, split, reference), lanes, rng)
@@ -599,7 +780,7 @@ impl<'a> Integrator<'a> {
                         Some((copies, copies_reference)) => {
                             // This path goes on as the last copy.
                             reference = Some(copies_reference);
-                            let from = (x, dir_in, &c);
+                            let from = (x, dir_in, &c, control.as_ref());
                             let walk = (depth, split, reference);
                             self.copies(from, beta, copies, walk, lanes, radiance, rng)
                         }
@@ -612,6 +793,9 @@ impl<'a> Integrator<'a> {
                                 && !survives_roulette(&mut beta, lanes.active, depth, split, rng)
                             {
                                 break;
+                            }
+                            if let Some(at) = &control {
+                                at.subtract(lanes, new_dir, &beta, radiance);
                             }
                             (x, new_dir, beta)
                         }
@@ -631,7 +815,12 @@ impl<'a> Integrator<'a> {
     #[allow(clippy::too_many_arguments)]
     fn copies(
         &self,
-        (x, dir_in, c): (DVec3, DVec3, &super::medium::Coefficients),
+        (x, dir_in, c, control): (
+            DVec3,
+            DVec3,
+            &super::medium::Coefficients,
+            Option<&ControlAt<'a>>,
+        ),
         beta: Lanes,
         copies: usize,
         walk: (u32, f64, Option<f64>),
@@ -644,10 +833,16 @@ impl<'a> Integrator<'a> {
         for _ in 1..copies {
             let mut copy = beta;
             let new_dir = self.scatter(x, dir_in, c, &mut copy, lanes, rng);
+            if let Some(at) = control {
+                at.subtract(lanes, new_dir, &copy, radiance);
+            }
             self.walk_sunlit(Next::Vertex((x, new_dir, copy)), walk, lanes, radiance, rng);
         }
         let mut last = beta;
         let new_dir = self.scatter(x, dir_in, c, &mut last, lanes, rng);
+        if let Some(at) = control {
+            at.subtract(lanes, new_dir, &last, radiance);
+        }
         (x, new_dir, last)
     }
 
@@ -656,7 +851,7 @@ impl<'a> Integrator<'a> {
     /// [`Self::walk_sunlit`]); ends the path (`None`) if it loses.
     fn roulette_vertex(
         &self,
-        next: &mut Option<Next>,
+        next: &mut Option<Next<'a>>,
         depth: u32,
         split: f64,
         lanes: &SpectralLanes,
@@ -733,7 +928,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<Next> {
+    ) -> Option<Next<'a>> {
         let segment = self.segment(origin, dir, depth, beta, lanes, radiance)?;
         if let Some(guide) = self.guide {
             return self.guided_segment(guide, &segment, beta, lanes, radiance, rng);
@@ -887,6 +1082,13 @@ impl<'a> Integrator<'a> {
                     share * beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
                         / (density * pdf * p_medium)
                 });
+                if let Some(at) = self.control_at(x, lanes, rng) {
+                    let scale: Lanes = std::array::from_fn(|j| {
+                        share * beta[j] * tr_view[j] / (density * p_medium)
+                    });
+                    self.control_in(&at, &c, lanes, dir, &scale, radiance);
+                    at.subtract(lanes, new_dir, &new_beta, radiance);
+                }
                 next[b] = Some((x, new_dir, new_beta));
                 continue;
             }
@@ -970,7 +1172,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<Next> {
+    ) -> Option<Next<'a>> {
         let at = guide.at(self.medium, segment.origin);
         let density = at.density(self.medium, segment.dir, segment.span);
         let n = (self
@@ -979,7 +1181,7 @@ impl<'a> Integrator<'a> {
             .max(self.options.shadow_samples) as usize)
             .min(MAX_SUNLIGHT_SAMPLES);
         self.estimate_segment(segment, beta, Some(&density), (n, 0), lanes, radiance, rng);
-        self.track_continuation(segment, beta, lanes, rng)
+        self.track_continuation(segment, beta, lanes, radiance, rng)
     }
 
     /// Where a path goes on from `segment`, whose light a segment estimate
@@ -991,8 +1193,9 @@ impl<'a> Integrator<'a> {
         segment: &Segment,
         beta: &Lanes,
         lanes: &SpectralLanes,
+        radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Option<Next> {
+    ) -> Option<Next<'a>> {
         let &Segment {
             origin,
             dir,
@@ -1009,7 +1212,11 @@ impl<'a> Integrator<'a> {
             let x = origin + dir * collision.t;
             let c = self.medium.coefficients(x.length(), lanes);
             if real_scattering(&c, collision.majorant, &mut beta, lanes, rng) {
-                return Some(Next::Scatter(x, dir, beta));
+                let control = self.control_at(x, lanes, rng);
+                if let Some(at) = &control {
+                    self.control_in(at, &c, lanes, dir, &beta, radiance);
+                }
+                return Some(Next::Scatter(x, dir, beta, control));
             }
         }
         let albedo = self.medium.ground_albedo;
@@ -1026,13 +1233,18 @@ impl<'a> Integrator<'a> {
     }
 
     /// `next` with its direction chosen (one copy, no splitting).
-    fn resolve(&self, next: Next, lanes: &SpectralLanes, rng: &mut Rng) -> Vertex {
+    fn resolve(
+        &self,
+        next: Next<'a>,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> (Vertex, Option<ControlAt<'a>>) {
         match next {
-            Next::Vertex(vertex) => vertex,
-            Next::Scatter(x, dir, mut beta) => {
+            Next::Vertex(vertex) => (vertex, None),
+            Next::Scatter(x, dir, mut beta, control) => {
                 let c = self.medium.coefficients(x.length(), lanes);
                 let new_dir = self.scatter(x, dir, &c, &mut beta, lanes, rng);
-                (x, new_dir, beta)
+                ((x, new_dir, beta), control)
             }
         }
     }
@@ -1061,27 +1273,6 @@ impl<'a> Integrator<'a> {
         for b in beta {
             *b *= p;
         }
-    }
-
-    /// A tentative collision at `x` (coefficients `c`, under `majorant`) on a
-    /// path along `dir` with weight `beta`: a real scattering, with the lane
-    /// average of σ_s/(σ̄ − σ_a) as its probability P_s (absorption only
-    /// weights paths), returns the new direction and weights `beta` by
-    /// σ_s p/(σ̄ P_s pdf); a null collision returns `None` and weights it by
-    /// (σ̄ − σ_t)/(σ̄ (1 − P_s)).
-    #[allow(clippy::too_many_arguments)]
-    fn collide(
-        &self,
-        x: DVec3,
-        dir: DVec3,
-        c: &super::medium::Coefficients,
-        majorant: f64,
-        beta: &mut Lanes,
-        lanes: &SpectralLanes,
-        rng: &mut Rng,
-    ) -> Option<DVec3> {
-        real_scattering(c, majorant, beta, lanes, rng)
-            .then(|| self.scatter(x, dir, c, beta, lanes, rng))
     }
 
     /// A new direction for a path along `dir` scattered at `x`
@@ -1250,6 +1441,8 @@ impl<'a> Integrator<'a> {
 
         loop {
             let mut scattered = false;
+            // The control variate's expansions where the path scattered.
+            let mut control = None;
             let shadowed = self
                 .guide
                 .filter(|g| opts.shadow_samples > 0 && depth > 0 && g.shadowed(origin));
@@ -1262,7 +1455,8 @@ impl<'a> Integrator<'a> {
                         self.guided_segment(guide, &segment, &beta, lanes, radiance, rng)
                     });
                 let Some(next) = next else { break };
-                let vertex = self.resolve(next, lanes, rng);
+                let vertex;
+                (vertex, control) = self.resolve(next, lanes, rng);
                 (origin, dir, beta) = vertex;
                 depth += 1;
                 scattered = true;
@@ -1295,10 +1489,13 @@ impl<'a> Integrator<'a> {
                         }
                         continue;
                     }
-                    if let Some(new_dir) = self.collide(x, dir, &c, majorant, &mut beta, lanes, rng)
-                    {
+                    if real_scattering(&c, majorant, &mut beta, lanes, rng) {
+                        control = self.control_at(x, lanes, rng);
+                        if let Some(at) = &control {
+                            self.control_in(at, &c, lanes, dir, &beta, radiance);
+                        }
+                        dir = self.scatter(x, dir, &c, &mut beta, lanes, rng);
                         origin = x;
-                        dir = new_dir;
                         depth += 1;
                         scattered = true;
                         break;
@@ -1328,6 +1525,9 @@ impl<'a> Integrator<'a> {
                 }
             } else if beta[..active].iter().all(|&b| b == 0.0) {
                 break;
+            }
+            if let Some(at) = &control {
+                at.subtract(lanes, dir, &beta, radiance);
             }
         }
     }
@@ -1456,21 +1656,22 @@ mod tests {
                 auto.sunlight_samples,
                 auto.sun_lobe,
                 auto.sky_guide_sunlit,
-                auto.splitting
+                auto.splitting,
+                auto.control_variate
             ),
-            (None, None, None, None)
+            (None, None, None, None, None)
         );
         assert_eq!((auto.sunlight_samples(), auto.sun_lobe()), (0, SUN_LOBE));
-        for (elevation_deg, samples, lobe, splitting) in [
-            (-4.0, 1, SUN_LOBE, true),
-            (-0.1, 1, SUN_LOBE, true),
-            (0.0, 1, SUN_LOBE, false),
-            (2.0, 1, SUN_LOBE, false),
-            (2.9, 1, SUN_LOBE, false),
-            (3.0, 0, SUN_LOBE, false),
-            (30.0, 0, SUN_LOBE, false),
-            (30.1, 0, HIGH_SUN_LOBE, false),
-            (45.0, 0, HIGH_SUN_LOBE, false),
+        for (elevation_deg, samples, lobe, splitting, control) in [
+            (-4.0, 1, SUN_LOBE, true, false),
+            (-0.1, 1, SUN_LOBE, true, false),
+            (0.0, 1, SUN_LOBE, false, true),
+            (2.0, 1, SUN_LOBE, false, true),
+            (2.9, 1, SUN_LOBE, false, true),
+            (3.0, 0, SUN_LOBE, false, false),
+            (30.0, 0, SUN_LOBE, false, false),
+            (30.1, 0, HIGH_SUN_LOBE, false, false),
+            (45.0, 0, HIGH_SUN_LOBE, false, false),
         ] {
             let resolved = auto.resolved(elevation_deg);
             assert_eq!(
@@ -1478,13 +1679,15 @@ mod tests {
                     resolved.sunlight_samples,
                     resolved.sun_lobe,
                     resolved.sky_guide_sunlit,
-                    resolved.splitting
+                    resolved.splitting,
+                    resolved.control_variate
                 ),
                 (
                     Some(samples),
                     Some(lobe),
                     Some(samples == 1),
-                    Some(splitting)
+                    Some(splitting),
+                    Some(control)
                 ),
                 "{elevation_deg}°"
             );
@@ -1494,6 +1697,7 @@ mod tests {
                     sun_lobe: None,
                     sky_guide_sunlit: None,
                     splitting: None,
+                    control_variate: None,
                     ..resolved
                 },
                 auto
@@ -1505,9 +1709,11 @@ mod tests {
                 sun_lobe: Some(lobe),
                 sky_guide_sunlit: Some(sunlit),
                 splitting: Some(splitting),
+                control_variate: Some(!splitting),
                 ..IntegratorOptions::default()
             };
             assert_eq!(options.resolved(-4.0), options);
+            assert_eq!(options.resolved(2.0), options);
             assert_eq!(options.resolved(45.0), options);
         }
     }

@@ -8,6 +8,7 @@
 
 pub mod camera;
 pub mod columns;
+pub mod control;
 pub mod directions;
 pub mod film;
 pub mod guide;
@@ -61,6 +62,9 @@ pub struct Renderer {
     /// options that use it (`sky_guide`, `shadow_samples`,
     /// `sunlight_samples`), so the default render does not set it up.
     sky_guide: Option<guide::SkyGuide>,
+    /// The once-scattered light's table for the control variate, where the
+    /// scene's options turn it on (`control_variate`).
+    control: Option<control::RadianceTable>,
     /// The scene's integrator options, every unset choice made for the scene
     /// ([`IntegratorOptions::resolved`]).
     options: IntegratorOptions,
@@ -77,7 +81,8 @@ pub struct PassStats {
     pub completed: bool,
     /// Camera paths traced.
     pub paths: u64,
-    /// Samples discarded as non-finite or negative.
+    /// Samples discarded as non-finite (or negative without the control
+    /// variate).
     pub discarded: u64,
 }
 
@@ -87,7 +92,8 @@ pub struct SpectralEstimate {
     pub wavelength_nm: f64,
     pub radiance: f64,
     pub std_error: f64,
-    /// Paths whose estimate was not finite and non-negative: counted as 0,
+    /// Paths whose estimate was not finite (or negative without the control
+    /// variate): counted as 0,
     /// like a discarded pixel sample.
     pub discarded: u64,
 }
@@ -113,8 +119,17 @@ impl Renderer {
                 (i.sky_guide > 0.0 || i.shadow_samples > 0 || i.sunlight_samples() > 0)
                     .then(|| guide::SkyGuide::new(&medium, sun_direction))
             },
+            control: (options.control_variate == Some(true)).then(|| {
+                control::RadianceTable::new(
+                    medium.planet_radius_m,
+                    medium.top_radius_m,
+                    sun_direction,
+                    cmf.range_nm(),
+                )
+            }),
             draft_options: IntegratorOptions {
                 camera_samples: 0,
+                control_variate: Some(false),
                 sky_guide: 0.0,
                 sunlight_samples: Some(0),
                 shadow_samples: 0,
@@ -181,8 +196,12 @@ impl Renderer {
         };
         let integrator = Integrator::new(&self.medium, options, self.sun_direction)
             .with_camera_densities(&self.camera_densities);
-        match &self.sky_guide {
+        let integrator = match &self.sky_guide {
             Some(guide) => integrator.with_sky_guide(guide),
+            None => integrator,
+        };
+        match &self.control {
+            Some(table) => integrator.with_control(table),
             None => integrator,
         }
     }
@@ -210,7 +229,8 @@ impl Renderer {
     }
 
     /// The `sample`-th XYZ sample (Y in cd m⁻²) through pixel (x, y), or
-    /// `None` if the estimate was not finite and non-negative. A pixel's
+    /// `None` if the estimate was not finite, or negative without the
+    /// control variate (with it, single estimates may be). A pixel's
     /// samples are numbered across passes: 0 is the draft pass's, 1 the first
     /// full pass's, then consecutively through each pass's samples (one per
     /// pass without a plan, so the number is the pass; see [`Self::render_pass`]).
@@ -257,8 +277,9 @@ impl Renderer {
                 xyz[c] += w * bar[c];
             }
         }
+        let signed = integrator.signed_estimates();
         xyz.iter()
-            .all(|v| v.is_finite() && *v >= 0.0)
+            .all(|v| v.is_finite() && (signed || *v >= 0.0))
             .then_some(xyz)
     }
 
@@ -357,6 +378,7 @@ impl Renderer {
         let dir = direction_from_az_el(view_azimuth_deg, 90.0 - view_zenith_deg);
         // Any pass but the first: the scene's own options.
         let integrator = self.integrator(1);
+        let signed = integrator.signed_estimates();
         wavelengths_nm
             .par_chunks(LANES)
             .enumerate()
@@ -377,7 +399,7 @@ impl Renderer {
                         Rng::for_sample(self.scene.render.seed, u64::from(s), chunk_index as u64);
                     let l = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
                     for j in 0..LANES {
-                        let v = if l[j].is_finite() && l[j] >= 0.0 {
+                        let v = if l[j].is_finite() && (signed || l[j] >= 0.0) {
                             l[j]
                         } else {
                             discarded[j] += 1;
