@@ -589,6 +589,12 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("splitting=true", |s| {
             s.render.integrator.splitting = Some(true);
         }),
+        ("control_variate=false", |s| {
+            s.render.integrator.control_variate = Some(false);
+        }),
+        ("control_variate=true", |s| {
+            s.render.integrator.control_variate = Some(true);
+        }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
         }),

@@ -67,6 +67,15 @@
 //! reach the brighter air high up or toward the sun, and there carry large
 //! weights.
 //!
+//! **The once-scattered light as a control variate** (`control_variate`, on
+//! with the sun 0–3° above the horizon): at every real scattering the exact
+//! phase-function integral of a tabulated approximation A of the
+//! once-scattered light arriving there is added, and the path going on
+//! estimates only L − A ([`super::control`]). At sunset the aureole, cut
+//! by the bright horizon, gives the light a point sees a sharp structure
+//! that the sampled directions find unevenly; taken out, it leaves 0.67×
+//! the variance (`BENCHMARKS.md`, session 13).
+//!
 //! **Alternative kept as an option** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`): `shadow_samples` estimates only
 //! the segments that start in the planet's shadow through points drawn
