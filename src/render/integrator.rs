@@ -255,9 +255,9 @@ pub const HIGH_SUN_LOBE: f64 = 0.15;
 pub const HIGH_SUN_ELEVATION_DEG: f64 = 30.0;
 /// Sun elevations (at the observer, from, to) with
 /// [`IntegratorOptions::control_variate`] on by default. Measured at fixed
-/// passes (`BENCHMARKS.md`, session 13): at 2° 0.67× the variance for
-/// 1.14× the time per pass; at −1°, 5° and 10° 0.85–0.87× the variance,
-/// no better than the cost; at −4° and 45° none.
+/// passes (`BENCHMARKS.md`, session 13): at 2° 0.68–0.69× the variance for
+/// 1.18–1.21× the time (0.5°: 0.69×, 2.9°: 0.62×); at −1°, 5° and 10°
+/// 0.85–0.87×, no more than it costs; at −4° and 45° nothing.
 pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
 /// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
 /// is on by default.
@@ -461,8 +461,9 @@ impl<'a> Integrator<'a> {
         }
     }
 
-    /// Uses `table` as the diffuse light's control variate (see
-    /// [`IntegratorOptions::control_variate`]).
+    /// Uses `table` as the diffuse light's control variate where the
+    /// options turn it on ([`IntegratorOptions::control_variate`]; never
+    /// with `max_scattering_order`, whose orders it would mix).
     #[must_use]
     pub fn with_control(mut self, table: &'a RadianceTable) -> Self {
         if self.options.control_variate == Some(true) && self.options.max_scattering_order.is_none()
