@@ -38,7 +38,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
-use super::directions::{band_coordinate, band_cosine, horizon_cosine};
+use super::directions::SunCells;
 
 /// Highest degree of the expansion.
 pub const L_MAX: usize = 8;
@@ -56,10 +56,8 @@ pub type CellCoefficients = [[f64; COEFFICIENTS]; NODES];
 
 /// The table of expansions per (altitude, solar zenith) cell.
 pub struct RadianceTable {
-    planet_radius_m: f64,
-    top_radius_m: f64,
     sun_direction: DVec3,
-    across_sun: DVec3,
+    layout: SunCells,
     first_nm: f64,
     step_nm: f64,
     cells: Vec<OnceLock<CellCoefficients>>,
@@ -197,7 +195,7 @@ fn normalisation(l: usize, m: usize) -> f64 {
     }
 }
 
-/// The expansion at one point for one lane: interpolated coefficients.
+/// One expansion: coefficients per unit irradiance at one wavelength node.
 pub type Expansion = [f64; COEFFICIENTS];
 
 impl RadianceTable {
@@ -211,10 +209,13 @@ impl RadianceTable {
         (from_nm, to_nm): (f64, f64),
     ) -> Self {
         Self {
-            planet_radius_m,
-            top_radius_m,
             sun_direction,
-            across_sun: super::integrator::orthonormal_basis(sun_direction).0,
+            layout: SunCells::new(
+                planet_radius_m,
+                top_radius_m,
+                sun_direction,
+                (ALTITUDE_CELLS, SUN_ZENITH_CELLS),
+            ),
             first_nm: from_nm,
             step_nm: (to_nm - from_nm) / (NODES - 1) as f64,
             cells: (0..ALTITUDE_CELLS * SUN_ZENITH_CELLS)
@@ -231,13 +232,7 @@ impl RadianceTable {
     /// The central point (m, planet-centred) of cell (altitude `i`, solar
     /// zenith `k`).
     pub fn cell_point(&self, i: usize, k: usize) -> DVec3 {
-        let top_m = self.top_radius_m - self.planet_radius_m;
-        let altitude_m = top_m * ((i as f64 + 0.5) / ALTITUDE_CELLS as f64).powi(2);
-        let r = self.planet_radius_m + altitude_m;
-        let s = (k as f64 + 0.5) / SUN_ZENITH_CELLS as f64;
-        let mu_sun = band_cosine(s, horizon_cosine(self.planet_radius_m, r), 1.0);
-        (self.sun_direction * mu_sun + self.across_sun * (1.0 - mu_sun * mu_sun).max(0.0).sqrt())
-            * r
+        self.layout.centre(i, k)
     }
 
     /// The frame at `x`.
@@ -260,14 +255,7 @@ impl RadianceTable {
         (u_cell, u_node): (f64, f64),
         build: impl Fn(usize, usize) -> CellCoefficients,
     ) -> Picked<'_, N> {
-        let r = x.length();
-        let top_m = self.top_radius_m - self.planet_radius_m;
-        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
-        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
-        let s =
-            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
-        let (i, fa) = cell_split(a, ALTITUDE_CELLS);
-        let (k, fs) = cell_split(s, SUN_ZENITH_CELLS);
+        let ((i, fa), (k, fs)) = self.layout.about(x);
         // Altitude first (u < 1 − fa: lower), then solar zenith, from one
         // uniform.
         let (i, u) = if u_cell < 1.0 - fa {
@@ -276,7 +264,7 @@ impl RadianceTable {
             (i + 1, (u_cell - (1.0 - fa)) / fa)
         };
         let k = if u < 1.0 - fs { k } else { k + 1 };
-        let cell = self.cells[i * SUN_ZENITH_CELLS + k].get_or_init(|| build(i, k));
+        let cell = self.cells[self.layout.index(i, k)].get_or_init(|| build(i, k));
         let nodes = wavelengths_nm.map(|nm| {
             let u = ((nm - self.first_nm) / self.step_nm).clamp(0.0, (NODES - 1) as f64);
             let n = (u as usize).min(NODES - 2);
@@ -302,14 +290,6 @@ impl<const N: usize> Picked<'_, N> {
     pub fn expansion(&self, lane: usize) -> &Expansion {
         &self.cell[self.nodes[lane]]
     }
-}
-
-/// The lower of two neighbouring cell centres about coordinate `u` ∈ [0, 1]
-/// over `cells` cells, and the fraction toward the upper one.
-fn cell_split(u: f64, cells: usize) -> (usize, f64) {
-    let c = (u * cells as f64 - 0.5).clamp(0.0, (cells - 1) as f64);
-    let i = (c as usize).min(cells - 2);
-    (i, c - i as f64)
 }
 
 #[cfg(test)]

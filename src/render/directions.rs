@@ -205,3 +205,99 @@ mod tests {
         }
     }
 }
+
+/// Cells of points by where they lie relative to the sun: a spherically
+/// symmetric atmosphere makes everything seen from a point depend on its
+/// altitude and the sun's zenith angle there only, so tables of what a point
+/// sees ([`super::guide`], [`super::control`]) are indexed by those two.
+/// Altitude cells use square-root spacing (dense low down, where the air
+/// is), solar-zenith cells the band coordinate about the local horizon
+/// (dense where the sun grazes and the shadow moves).
+#[derive(Clone, Copy, Debug)]
+pub struct SunCells {
+    planet_radius_m: f64,
+    top_radius_m: f64,
+    sun_direction: DVec3,
+    /// A unit vector across the sun's direction, to place central points.
+    across_sun: DVec3,
+    /// Cells in altitude and in solar zenith.
+    pub altitude: usize,
+    pub sun_zenith: usize,
+}
+
+impl SunCells {
+    pub fn new(
+        planet_radius_m: f64,
+        top_radius_m: f64,
+        sun_direction: DVec3,
+        (altitude, sun_zenith): (usize, usize),
+    ) -> Self {
+        Self {
+            planet_radius_m,
+            top_radius_m,
+            sun_direction,
+            across_sun: super::integrator::orthonormal_basis(sun_direction).0,
+            altitude,
+            sun_zenith,
+        }
+    }
+
+    /// Number of cells.
+    pub fn count(&self) -> usize {
+        self.altitude * self.sun_zenith
+    }
+
+    /// Index of cell (altitude `i`, solar zenith `k`).
+    pub fn index(&self, i: usize, k: usize) -> usize {
+        i * self.sun_zenith + k
+    }
+
+    /// The coordinates of `x` (m, planet-centred), each in [0, 1]: altitude
+    /// and solar zenith.
+    fn coordinates(&self, x: DVec3) -> (f64, f64) {
+        let r = x.length();
+        let top_m = self.top_radius_m - self.planet_radius_m;
+        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
+        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
+        let s =
+            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
+        (a, s)
+    }
+
+    /// The cell that holds `x`: (altitude, solar zenith).
+    pub fn containing(&self, x: DVec3) -> (usize, usize) {
+        let (a, s) = self.coordinates(x);
+        (
+            ((a * self.altitude as f64) as usize).min(self.altitude - 1),
+            ((s * self.sun_zenith as f64) as usize).min(self.sun_zenith - 1),
+        )
+    }
+
+    /// The lower of the two neighbouring cell centres about `x` in altitude
+    /// and in solar zenith, each with the fraction toward the upper one
+    /// (for bilinear interpolation between cell centres).
+    pub fn about(&self, x: DVec3) -> ((usize, f64), (usize, f64)) {
+        let (a, s) = self.coordinates(x);
+        (cell_split(a, self.altitude), cell_split(s, self.sun_zenith))
+    }
+
+    /// The central point (m, planet-centred) of cell (altitude `i`, solar
+    /// zenith `k`).
+    pub fn centre(&self, i: usize, k: usize) -> DVec3 {
+        let top_m = self.top_radius_m - self.planet_radius_m;
+        let altitude_m = top_m * ((i as f64 + 0.5) / self.altitude as f64).powi(2);
+        let r = self.planet_radius_m + altitude_m;
+        let s = (k as f64 + 0.5) / self.sun_zenith as f64;
+        let mu_sun = band_cosine(s, horizon_cosine(self.planet_radius_m, r), 1.0);
+        (self.sun_direction * mu_sun + self.across_sun * (1.0 - mu_sun * mu_sun).max(0.0).sqrt())
+            * r
+    }
+}
+
+/// The lower of two neighbouring cell centres about coordinate `u` ∈ [0, 1]
+/// over `cells` cells, and the fraction toward the upper one.
+fn cell_split(u: f64, cells: usize) -> (usize, f64) {
+    let c = (u * cells as f64 - 0.5).clamp(0.0, (cells - 1) as f64);
+    let i = (c as usize).min(cells - 2);
+    (i, c - i as f64)
+}

@@ -39,7 +39,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
-use super::directions::{band_coordinate, band_cosine, horizon_cosine, Grid, ViewFrame};
+use super::directions::{horizon_cosine, Grid, SunCells, ViewFrame};
 use super::medium::{Medium, Span};
 use super::sunlight::{CachedRayDensity, DensityBuilder, DensitySlots, InScatterDistribution};
 use crate::rng::Rng;
@@ -61,8 +61,7 @@ pub struct SkyGuide {
     planet_radius_m: f64,
     top_radius_m: f64,
     sun_direction: DVec3,
-    /// A unit vector across the sun's direction, to place representative points.
-    across_sun: DVec3,
+    layout: SunCells,
     builder: DensityBuilder,
     cells: Vec<OnceLock<PointCell>>,
 }
@@ -89,7 +88,12 @@ impl SkyGuide {
             planet_radius_m: medium.planet_radius_m,
             top_radius_m: medium.top_radius_m,
             sun_direction,
-            across_sun: super::integrator::orthonormal_basis(sun_direction).0,
+            layout: SunCells::new(
+                medium.planet_radius_m,
+                medium.top_radius_m,
+                sun_direction,
+                (ALTITUDE_CELLS, SUN_ZENITH_CELLS),
+            ),
             builder: DensityBuilder::new(medium, sun_direction),
             cells: (0..ALTITUDE_CELLS * SUN_ZENITH_CELLS)
                 .map(|_| OnceLock::new())
@@ -113,9 +117,7 @@ impl SkyGuide {
 
     /// The guide at point `x` (m, planet-centred, inside the atmosphere).
     pub fn at(&self, medium: &Medium, x: DVec3) -> GuideAt<'_> {
-        let (a, s) = self.coordinates(x);
-        let i = ((a * ALTITUDE_CELLS as f64) as usize).min(ALTITUDE_CELLS - 1);
-        let k = ((s * SUN_ZENITH_CELLS as f64) as usize).min(SUN_ZENITH_CELLS - 1);
+        let (i, k) = self.layout.containing(x);
         let cell = self.cell(medium, i, k);
         GuideAt {
             guide: self,
@@ -131,14 +133,7 @@ impl SkyGuide {
 
     /// The table of cell (altitude `i`, solar zenith `k`), from its central point.
     fn build(&self, medium: &Medium, i: usize, k: usize) -> PointCell {
-        let top_m = self.top_radius_m - self.planet_radius_m;
-        let altitude_m = top_m * ((i as f64 + 0.5) / ALTITUDE_CELLS as f64).powi(2);
-        let r = self.planet_radius_m + altitude_m;
-        let s = (k as f64 + 0.5) / SUN_ZENITH_CELLS as f64;
-        let mu_sun = band_cosine(s, horizon_cosine(self.planet_radius_m, r), 1.0);
-        let origin_m = (self.sun_direction * mu_sun
-            + self.across_sun * (1.0 - mu_sun * mu_sun).max(0.0).sqrt())
-            * r;
+        let origin_m = self.layout.centre(i, k);
         let frame = ViewFrame::new(
             self.planet_radius_m,
             self.top_radius_m,
@@ -176,31 +171,16 @@ impl SkyGuide {
         }
     }
 
-    /// The table coordinates of `x` (m, planet-centred), each in [0, 1]:
-    /// altitude (square-root spacing) and solar zenith (the band coordinate
-    /// about the local horizon).
-    fn coordinates(&self, x: DVec3) -> (f64, f64) {
-        let r = x.length();
-        let top_m = self.top_radius_m - self.planet_radius_m;
-        let a = ((r - self.planet_radius_m) / top_m).clamp(0.0, 1.0).sqrt();
-        let mu_sun = (x.dot(self.sun_direction) / r).clamp(-1.0, 1.0);
-        let s =
-            band_coordinate(mu_sun, horizon_cosine(self.planet_radius_m, r), 1.0).unwrap_or(1.0);
-        (a, s)
-    }
-
     /// The cell of (altitude `i`, solar zenith `k`), built on first use.
     fn cell(&self, medium: &Medium, i: usize, k: usize) -> &PointCell {
-        self.cells[i * SUN_ZENITH_CELLS + k].get_or_init(|| self.build(medium, i, k))
+        self.cells[self.layout.index(i, k)].get_or_init(|| self.build(medium, i, k))
     }
 
     /// Approximate mean once-scattered radiance arriving at `x` per unit
     /// irradiance, sr⁻¹ (the tables' fluence over 4π, interpolated bilinearly
     /// between cell centres).
     pub fn skylight(&self, medium: &Medium, x: DVec3) -> f64 {
-        let (a, s) = self.coordinates(x);
-        let (i, fa) = cell_split(a, ALTITUDE_CELLS);
-        let (k, fs) = cell_split(s, SUN_ZENITH_CELLS);
+        let ((i, fa), (k, fs)) = self.layout.about(x);
         let f = |i: usize, k: usize| self.cell(medium, i, k).fluence;
         let lo = f(i, k) * (1.0 - fs) + f(i, k + 1) * fs;
         let hi = f(i + 1, k) * (1.0 - fs) + f(i + 1, k + 1) * fs;
@@ -232,14 +212,6 @@ impl SkyGuide {
         }
         light
     }
-}
-
-/// The lower of two neighbouring cell centres about coordinate `u` ∈ [0, 1]
-/// over `cells` cells, and the fraction toward the upper one.
-fn cell_split(u: f64, cells: usize) -> (usize, f64) {
-    let c = (u * cells as f64 - 0.5).clamp(0.0, (cells - 1) as f64);
-    let i = (c as usize).min(cells - 2);
-    (i, c - i as f64)
 }
 
 /// The guide at one point: its cell's table seen in the point's own frame.
