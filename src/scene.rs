@@ -441,4 +441,16 @@ mod tests {
             assert!(e.to_string().contains(range), "{e}");
         }
     }
+
+    #[test]
+    fn the_control_variate_is_a_scene_option_on_at_sunset() {
+        let scene = Scene::from_toml("[render.integrator]\ncontrol_variate = false\n").unwrap();
+        assert_eq!(scene.render.integrator.control_variate, Some(false));
+        let sunset = Scene::preset("sunset").unwrap();
+        let resolved = sunset.render.integrator.resolved(sunset.sun.elevation_deg);
+        assert_eq!(resolved.control_variate, Some(true));
+        let midday = Scene::preset("midday").unwrap();
+        let resolved = midday.render.integrator.resolved(midday.sun.elevation_deg);
+        assert_eq!(resolved.control_variate, Some(false));
+    }
 }
