@@ -38,7 +38,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
-use super::directions::SunCells;
+use super::directions::{LocalAxes, SunCells};
 
 /// Highest degree of the expansion.
 pub const L_MAX: usize = 8;
@@ -63,33 +63,27 @@ pub struct RadianceTable {
     cells: Vec<OnceLock<CellCoefficients>>,
 }
 
-/// The local frame of a point: its zenith and the horizontal direction
-/// toward the sun's azimuth.
+/// The local frame of a point ([`LocalAxes`]), in which the basis is laid.
 #[derive(Clone, Copy, Debug)]
 pub struct Frame {
-    up: DVec3,
-    toward_sun: DVec3,
+    axes: LocalAxes,
 }
 
 impl Frame {
     pub fn new(x: DVec3, sun_direction: DVec3) -> Self {
-        let up = x.normalize();
-        let horizontal = sun_direction - up * sun_direction.dot(up);
-        let toward_sun = if horizontal.length_squared() > 1e-18 {
-            horizontal.normalize()
-        } else {
-            super::integrator::orthonormal_basis(up).0
-        };
-        Self { up, toward_sun }
+        Self {
+            axes: LocalAxes::new(x, sun_direction),
+        }
     }
 
     /// The basis at direction `dir` (unit).
     pub fn basis(&self, dir: DVec3) -> [f64; COEFFICIENTS] {
-        let cos_theta = dir.dot(self.up).clamp(-1.0, 1.0);
-        let horizontal = dir - self.up * cos_theta;
+        let LocalAxes { up, toward_sun, .. } = self.axes;
+        let cos_theta = dir.dot(up).clamp(-1.0, 1.0);
+        let horizontal = dir - up * cos_theta;
         let h = horizontal.length();
         let cos_phi = if h > 1e-12 {
-            (horizontal.dot(self.toward_sun) / h).clamp(-1.0, 1.0)
+            (horizontal.dot(toward_sun) / h).clamp(-1.0, 1.0)
         } else {
             1.0
         };
@@ -99,10 +93,7 @@ impl Frame {
     /// The direction at zenith cosine `cos_theta` and azimuth `phi` (rad)
     /// from the sun's vertical plane.
     pub fn direction(&self, cos_theta: f64, phi: f64) -> DVec3 {
-        let sin = (1.0 - cos_theta * cos_theta).max(0.0).sqrt();
-        let across = self.up.cross(self.toward_sun);
-        (self.toward_sun * (sin * phi.cos()) + across * (sin * phi.sin()) + self.up * cos_theta)
-            .normalize()
+        self.axes.direction(cos_theta, phi)
     }
 }
 

@@ -51,13 +51,47 @@ pub fn horizon_cosine(planet_radius_m: f64, r_m: f64) -> f64 {
     -(1.0 - (planet_radius_m / r_m).powi(2)).max(0.0).sqrt()
 }
 
-/// The local frame of a point: its zenith, the horizontal direction toward
-/// the sun's azimuth and the one across it, and the horizon's cosines.
+/// The axes of a point's local frame: its zenith, the horizontal direction
+/// toward the sun's azimuth (any horizontal direction with the sun at the
+/// zenith or nadir) and the one across it.
+#[derive(Clone, Copy, Debug)]
+pub struct LocalAxes {
+    pub up: DVec3,
+    pub toward_sun: DVec3,
+    pub across_sun: DVec3,
+}
+
+impl LocalAxes {
+    /// The axes at `x` (m, planet-centred) for the sun along `sun_direction`.
+    pub fn new(x: DVec3, sun_direction: DVec3) -> Self {
+        let up = x.normalize();
+        let horizontal = sun_direction - up * sun_direction.dot(up);
+        let toward_sun = if horizontal.length() > 1e-9 {
+            horizontal.normalize()
+        } else {
+            super::integrator::orthonormal_basis(up).0
+        };
+        Self {
+            up,
+            toward_sun,
+            across_sun: up.cross(toward_sun),
+        }
+    }
+
+    /// The direction at zenith cosine `mu` and azimuth `phi` (rad) from the
+    /// sun's vertical plane.
+    pub fn direction(&self, mu: f64, phi: f64) -> DVec3 {
+        let sin = (1.0 - mu * mu).max(0.0).sqrt();
+        (self.toward_sun * (sin * phi.cos()) + self.across_sun * (sin * phi.sin()) + self.up * mu)
+            .normalize()
+    }
+}
+
+/// The local frame of a point: its axes ([`LocalAxes`]) and the horizon's
+/// cosines.
 #[derive(Clone, Copy, Debug)]
 pub struct ViewFrame {
-    up: DVec3,
-    toward_sun: DVec3,
-    across_sun: DVec3,
+    axes: LocalAxes,
     /// Cosine of the view zenith angle of the planet's horizon.
     mu_horizon: f64,
     /// Largest view-zenith cosine whose ray meets the atmosphere (1 inside
@@ -74,18 +108,9 @@ impl ViewFrame {
         origin_m: DVec3,
         sun_direction: DVec3,
     ) -> Self {
-        let up = origin_m.normalize();
-        let horizontal = sun_direction - up * sun_direction.dot(up);
-        let toward_sun = if horizontal.length() > 1e-9 {
-            horizontal.normalize()
-        } else {
-            super::integrator::orthonormal_basis(up).0
-        };
         let r = origin_m.length();
         Self {
-            up,
-            toward_sun,
-            across_sun: up.cross(toward_sun),
+            axes: LocalAxes::new(origin_m, sun_direction),
             mu_horizon: horizon_cosine(planet_radius_m, r),
             mu_top: if r > top_radius_m {
                 horizon_cosine(top_radius_m, r)
@@ -97,13 +122,15 @@ impl ViewFrame {
 
     /// Cell of `dir` in `grid`, or `None` above the atmosphere's limb.
     pub fn cell_index(&self, grid: Grid, dir: DVec3) -> Option<usize> {
-        let mu = dir.dot(self.up).clamp(-1.0, 1.0);
+        let LocalAxes {
+            up,
+            toward_sun,
+            across_sun,
+        } = self.axes;
+        let mu = dir.dot(up).clamp(-1.0, 1.0);
         let s = band_coordinate(mu, self.mu_horizon, self.mu_top)?;
         let i = ((s * grid.zenith as f64) as usize).min(grid.zenith - 1);
-        let phi = dir
-            .dot(self.across_sun)
-            .abs()
-            .atan2(dir.dot(self.toward_sun));
+        let phi = dir.dot(across_sun).abs().atan2(dir.dot(toward_sun));
         let k = ((phi / std::f64::consts::PI * grid.azimuth as f64) as usize).min(grid.azimuth - 1);
         Some(i * grid.azimuth + k)
     }
@@ -123,20 +150,13 @@ impl ViewFrame {
         )
     }
 
-    /// The direction at zenith cosine `mu` and azimuth `phi` from the sun.
-    fn direction(&self, mu: f64, phi: f64) -> DVec3 {
-        let sin = (1.0 - mu * mu).max(0.0).sqrt();
-        (self.toward_sun * (sin * phi.cos()) + self.across_sun * (sin * phi.sin()) + self.up * mu)
-            .normalize()
-    }
-
     /// The central direction of cell `index` (central in band coordinate).
     pub fn cell_direction(&self, grid: Grid, index: usize) -> DVec3 {
         let (i, k) = (index / grid.azimuth, index % grid.azimuth);
         let s = (i as f64 + 0.5) / grid.zenith as f64;
         let mu = band_cosine(s, self.mu_horizon, self.mu_top);
         let phi = (k as f64 + 0.5) / grid.azimuth as f64 * std::f64::consts::PI;
-        self.direction(mu, phi)
+        self.axes.direction(mu, phi)
     }
 
     /// Solid angle of cell `index`, sr (both mirror halves).
@@ -151,7 +171,7 @@ impl ViewFrame {
         let ((mu0, mu1), (phi0, phi1)) = self.cell_bounds(grid, index);
         let mu = mu0 + (mu1 - mu0) * u[0];
         let phi = phi0 + (phi1 - phi0) * u[1];
-        self.direction(mu, if u[2] < 0.5 { phi } else { -phi })
+        self.axes.direction(mu, if u[2] < 0.5 { phi } else { -phi })
     }
 }
 
