@@ -2,9 +2,9 @@
 //! time and readable at any moment. Rows record how many passes they hold
 //! and their total weight, so a pass interrupted half-way still reads back
 //! coherently. A pixel's value is Σ wₛ xₛ / Σ wₛ over its samples, each
-//! weight set by the sample's pass alone (1/8 for the draft, 1 otherwise)
-//! and the number of samples by nothing the pixel's own samples influence,
-//! so the mean is unbiased.
+//! weight set by the sample's pass alone (the draft's by the sun's
+//! elevation, `super::draft_weight`; 1 otherwise) and the number of samples
+//! by nothing the pixel's own samples influence, so the mean is unbiased.
 //!
 //! **Adaptive sampling.** After the first full pass the renderer gives the
 //! film a plan (`Film::plan_samples`): every later pass takes 1–8 samples

@@ -43,6 +43,27 @@ const GOLDEN_RATIO_CONJUGATE: f64 = 0.618_033_988_749_894_8;
 /// full pass, so the plan reads one full sample per pixel.
 pub const ADAPTIVE_FROM_PASS: u32 = 2;
 
+/// The draft pass's weight in the film's average for the sun at
+/// `sun_elevation_deg` above the observer's horizon; every later sample
+/// weighs 1. Weights ∝ 1/variance minimise the mean's, and the draft's
+/// delta-tracked camera paths (see [`Renderer::integrator`]) have, per
+/// path, 6–16× the variance of a full pass's by day (sun 45°), 23–49× with
+/// the sun at 2° and 58–147× at −4°, where a rare collision in the sunlit
+/// air high above carries the light (four views at elevations 7–74°,
+/// `BENCHMARKS.md`, session 14). Any fixed weight keeps the mean unbiased;
+/// a positive one lets the draft alone show a first image. At twilight the
+/// old 1/8 doubled the single-scattered light's variance over 8 passes
+/// (absolute noise 0.296 against 0.214 with 1/100).
+pub fn draft_weight(sun_elevation_deg: f64) -> f64 {
+    if sun_elevation_deg < 0.0 {
+        1.0 / 128.0
+    } else if sun_elevation_deg < integrator::LOW_SUN_ELEVATION_DEG {
+        1.0 / 32.0
+    } else {
+        1.0 / 8.0
+    }
+}
+
 /// A scene made ready to render.
 pub struct Renderer {
     pub scene: Scene,
@@ -72,6 +93,8 @@ pub struct Renderer {
     /// and shadow rays through the shells, for the first pass (see
     /// [`Self::integrator`]).
     draft_options: IntegratorOptions,
+    /// The draft pass's weight in the film's average ([`draft_weight`]).
+    draft_weight: f64,
 }
 
 /// Result of one pass.
@@ -127,6 +150,7 @@ impl Renderer {
                     cmf.range_nm(),
                 )
             }),
+            draft_weight: draft_weight(scene.sun.elevation_deg),
             draft_options: IntegratorOptions {
                 camera_samples: 0,
                 control_variate: Some(false),
@@ -169,15 +193,11 @@ impl Renderer {
         Film::new(self.scene.render.width, self.scene.render.height)
     }
 
-    /// The weight of pass `pass` in the film's average. The draft pass (see
-    /// [`Self::integrator`]) has 5–20× the variance of a full pass (per-path
-    /// relative std 1.8 vs 0.42 at midday's zenith, 2.6 vs 1.2 in the sunset
-    /// glow); weights ∝ 1/variance minimise the mean's, and 1/8 lies within
-    /// that range. Left at 1, the draft doubled the variance of the upper
-    /// sky in a 24-pass midday render (BENCHMARKS.md, session 6).
-    fn pass_weight(pass: u32) -> f64 {
+    /// The weight of pass `pass` in the film's average: the draft's
+    /// ([`draft_weight`]) or 1.
+    fn pass_weight(&self, pass: u32) -> f64 {
         if pass == 0 {
-            0.125
+            self.draft_weight
         } else {
             1.0
         }
@@ -305,7 +325,7 @@ impl Renderer {
         let width = film.width as usize;
         let discarded = AtomicU64::new(0);
         let paths = AtomicU64::new(0);
-        let weight = Self::pass_weight(pass);
+        let weight = self.pass_weight(pass);
         let planned = film.is_planned();
         // The film weighs each planned sample 1 (`Film::xyz`).
         debug_assert!(!planned || weight == 1.0);
@@ -445,7 +465,7 @@ mod tests {
     #[test]
     fn the_film_weights_every_sample_by_its_pass() {
         // The film's pixel = Σ w·sample / Σ w over the pixel's samples: the
-        // draft (pass 0) weighted 1/8, every later sample 1 — with adaptive
+        // draft (pass 0) weighted by `draft_weight`, every later sample 1 — with adaptive
         // sampling the m samples a planned pixel takes per pass from pass 2
         // on, numbered consecutively (f32 sums: 1e-5 relative).
         let renderer = small_sunset(true);
@@ -467,7 +487,7 @@ mod tests {
                 let mut add = |pass: u32, sample: u64| {
                     let integrator = renderer.integrator(pass);
                     let xyz = renderer.sample_pixel(&integrator, x, y, sample).unwrap();
-                    let w = Renderer::pass_weight(pass);
+                    let w = renderer.pass_weight(pass);
                     weights += w;
                     for c in 0..3 {
                         sum[c] += w * xyz[c];
@@ -478,7 +498,8 @@ mod tests {
                 for sample in 2..2 + 2 * u64::from(m) {
                     add(2 + ((sample - 2) / u64::from(m)) as u32, sample);
                 }
-                assert!((weights - (1.125 + 2.0 * f64::from(m))).abs() < 1e-12);
+                let draft = renderer.pass_weight(0);
+                assert!((weights - (draft + 1.0 + 2.0 * f64::from(m))).abs() < 1e-12);
                 let got = film.xyz(x, y);
                 for c in 0..3 {
                     let expected = sum[c] / weights;
