@@ -142,13 +142,14 @@ const SKYLIGHT_SHARE: f64 = 0.3;
 
 /// A piecewise-constant density of distances along one camera ray.
 pub struct InScatterDistribution {
-    /// Segment boundaries, m along the ray.
-    t: [f64; MAX_SEGMENTS + 1],
-    /// Cumulative probability at each boundary (cdf[0] = 0, cdf[n] = 1) of
-    /// the whole mixture ([`Component::Mixture`]) and of the skylight
-    /// component alone ([`Component::Skylight`]).
-    cdf: [f64; MAX_SEGMENTS + 1],
-    sky_cdf: [f64; MAX_SEGMENTS + 1],
+    /// The n + 1 segment boundaries (m along the ray), then the cumulative
+    /// probability at each (0 at the first, 1 at the last) of the whole
+    /// mixture ([`Component::Mixture`]) and of the skylight component alone
+    /// ([`Component::Skylight`]): 3 (n + 1) values. Packed to the ray's own
+    /// segments (some 20 on average): the guide caches tens of thousands of
+    /// these densities, read at random, and at the 96 segments' size they
+    /// overflowed the cache (session 14).
+    values: Box<[f64]>,
     segments: usize,
     /// Approximate lane-averaged ∫ σ_s T dt, T(t_end), and the
     /// once-scattered sunlight per unit irradiance ∫ σ_s p T T_sun dt, sr⁻¹.
@@ -277,10 +278,14 @@ impl InScatterDistribution {
             }
             c[n] = 1.0;
         }
+        let values = t[..=n]
+            .iter()
+            .chain(&cdf[..=n])
+            .chain(&sky_cdf[..=n])
+            .copied()
+            .collect();
         Some(Self {
-            t,
-            cdf,
-            sky_cdf,
+            values,
             segments: n,
             scattered: sky_total[..active].iter().sum::<f64>() / active as f64,
             sunlit: sun_total[..active].iter().sum::<f64>() / active as f64,
@@ -309,18 +314,25 @@ impl InScatterDistribution {
 
     /// Where the density starts along its ray, m.
     pub fn t_enter(&self) -> f64 {
-        self.t[0]
+        self.values[0]
     }
 
     /// Length of the density's support, m.
     pub fn length(&self) -> f64 {
-        self.t[self.segments] - self.t[0]
+        self.values[self.segments] - self.values[0]
     }
 
-    fn cdf(&self, component: Component) -> &[f64; MAX_SEGMENTS + 1] {
+    /// The segment boundaries, m along the ray.
+    fn t(&self) -> &[f64] {
+        &self.values[..=self.segments]
+    }
+
+    /// The cumulative probabilities of `component` at the boundaries.
+    fn cdf(&self, component: Component) -> &[f64] {
+        let n = self.segments + 1;
         match component {
-            Component::Mixture => &self.cdf,
-            Component::Skylight => &self.sky_cdf,
+            Component::Mixture => &self.values[n..2 * n],
+            Component::Skylight => &self.values[2 * n..],
         }
     }
 
@@ -328,12 +340,13 @@ impl InScatterDistribution {
     /// (zero outside the segments).
     pub fn density_at(&self, component: Component, t_m: f64) -> f64 {
         let n = self.segments;
-        if !(self.t[0]..=self.t[n]).contains(&t_m) {
+        let t = self.t();
+        if !(t[0]..=t[n]).contains(&t_m) {
             return 0.0;
         }
         let cdf = self.cdf(component);
-        let s = self.t[1..=n].partition_point(|&b| b < t_m).min(n - 1);
-        let length = self.t[s + 1] - self.t[s];
+        let s = t[1..=n].partition_point(|&b| b < t_m).min(n - 1);
+        let length = t[s + 1] - t[s];
         if length > 0.0 {
             (cdf[s + 1] - cdf[s]) / length
         } else {
@@ -345,17 +358,17 @@ impl InScatterDistribution {
     /// its density, m⁻¹.
     pub fn sample(&self, component: Component, u: f64) -> (f64, f64) {
         let n = self.segments;
-        let cdf = self.cdf(component);
+        let (t, cdf) = (self.t(), self.cdf(component));
         // First segment whose upper cumulative probability exceeds u.
         let s = cdf[1..=n].partition_point(|&c| c <= u).min(n - 1);
         let p = cdf[s + 1] - cdf[s];
         if p <= 0.0 {
             // Only reachable through rounding at u ≈ 1: take the segment's end.
-            return (self.t[s + 1], 0.0);
+            return (t[s + 1], 0.0);
         }
         let f = ((u - cdf[s]) / p).clamp(0.0, 1.0);
-        let length = self.t[s + 1] - self.t[s];
-        (self.t[s] + f * length, p / length)
+        let length = t[s + 1] - t[s];
+        (t[s] + f * length, p / length)
     }
 }
 
@@ -502,7 +515,7 @@ fn sun_optical_depth(lanes: &SpectralLanes, j: usize, [air, o3, aer]: [f64; 3]) 
 
 /// Densities built on first use, one per slot; building is deterministic, so
 /// results do not depend on which thread builds a slot.
-pub struct DensitySlots(Vec<OnceLock<Option<Box<InScatterDistribution>>>>);
+pub struct DensitySlots(Vec<OnceLock<Option<InScatterDistribution>>>);
 
 impl DensitySlots {
     pub fn new(slots: usize) -> Self {
@@ -516,9 +529,7 @@ impl DensitySlots {
         slot: usize,
         build: impl FnOnce() -> Option<InScatterDistribution>,
     ) -> Option<&InScatterDistribution> {
-        self.0[slot]
-            .get_or_init(|| build().map(Box::new))
-            .as_deref()
+        self.0[slot].get_or_init(build).as_ref()
     }
 }
 
