@@ -1463,7 +1463,7 @@ mod tests {
         // and with little noise — with the column table's control (shadow
         // rays, `transmittance`) and with the shells' chords (`transmittance`
         // with the chord variant, and `transmittance_along`, which segment
-        // estimates use).
+        // estimates use, to the end or to an in-scattering point).
         let medium = medium();
         let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
         let mut rng = Rng::new(5, 5);
@@ -1472,19 +1472,31 @@ mod tests {
             if span.hits_ground {
                 continue;
             }
-            let mut depth = [0.0; LANES];
-            let mut walk = medium.walk(origin, dir, span, Bounds::Tight);
-            while let Some(piece) = walk.next_piece(&medium) {
-                let n = 2000;
-                let h = (piece.t1 - piece.t0) / f64::from(n);
-                for i in 0..n {
-                    let t = piece.t0 + h * (f64::from(i) + 0.5);
-                    let c = medium.coefficients((origin + dir * t).length(), &lanes);
-                    for (j, d) in depth.iter_mut().enumerate() {
-                        *d += c.extinction(j) * h;
+            // Optical depth from the span's start to `t_stop`, 2000 midpoint
+            // steps per shell piece.
+            let depth_to = |t_stop: f64| {
+                let mut depth = [0.0; LANES];
+                let mut walk = medium.walk(origin, dir, span, Bounds::Tight);
+                while let Some(piece) = walk.next_piece(&medium) {
+                    let (t0, t1) = (piece.t0, piece.t1.min(t_stop));
+                    if t1 <= t0 {
+                        break;
+                    }
+                    let n = 2000;
+                    let h = (t1 - t0) / f64::from(n);
+                    for i in 0..n {
+                        let t = t0 + h * (f64::from(i) + 0.5);
+                        let c = medium.coefficients((origin + dir * t).length(), &lanes);
+                        for (j, d) in depth.iter_mut().enumerate() {
+                            *d += c.extinction(j) * h;
+                        }
                     }
                 }
-            }
+                depth
+            };
+            let depth = depth_to(span.t_exit);
+            let checkpoint = span.t_enter + 0.4 * (span.t_exit - span.t_enter);
+            let depth_checkpoint = depth_to(checkpoint);
             let steep = dir.z.abs() >= 0.5;
             // Relative std limits, steep and grazing rays (measured at
             // 440–680 nm: table 0.003–0.011 and 0.015–0.12 — the grazing
@@ -1515,13 +1527,49 @@ mod tests {
                     )
                     .expect("a pass to the end")
             };
-            let estimators: [(&str, Estimate, f64); 3] = [
-                ("table", &table, if steep { 0.02 } else { 0.2 }),
-                ("chords", &chords, if steep { 0.06 } else { 0.2 }),
-                ("chords along", &along, if steep { 0.06 } else { 0.2 }),
+            // To a point 40 % along the span only (a segment estimate's
+            // in-scattering point).
+            let to_checkpoint = |rng: &mut Rng| {
+                let rrt = TransmittanceEstimator::ResidualRatioTracking;
+                let mut checkpoints = [(checkpoint, [0.0; LANES])];
+                let end = medium.transmittance_along(
+                    origin,
+                    dir,
+                    span,
+                    &lanes,
+                    rrt,
+                    Bounds::Tight,
+                    &mut checkpoints,
+                    false,
+                    rng,
+                );
+                assert!(end.is_none());
+                checkpoints[0].1
+            };
+            let estimators: [(&str, Estimate, f64, &Lanes); 4] = [
+                ("table", &table, if steep { 0.02 } else { 0.2 }, &depth),
+                ("chords", &chords, if steep { 0.06 } else { 0.2 }, &depth),
+                (
+                    "chords along",
+                    &along,
+                    if steep { 0.06 } else { 0.2 },
+                    &depth,
+                ),
+                (
+                    "to a checkpoint",
+                    &to_checkpoint,
+                    if steep { 0.06 } else { 0.2 },
+                    &depth_checkpoint,
+                ),
             ];
-            for (name, estimate, limit) in estimators {
-                let n = 4000;
+            for (name, estimate, limit, depth) in estimators {
+                // Rare events where the extinction nears the residual bound
+                // pull single estimates far down, which 4000 samples' standard
+                // error misses: with 4000, 5 of 8 seeds (5–12) failed by 5–80
+                // standard errors, the table's and the chords' estimators
+                // alike (the table's mean from 400 000 samples agrees with the
+                // quadrature to 1e-5); with 40 000 all 8 pass.
+                let n = 40_000;
                 let (mut sum, mut sum2) = ([0.0; LANES], [0.0; LANES]);
                 for _ in 0..n {
                     let t = estimate(&mut rng);
