@@ -278,8 +278,37 @@ pub struct Picked<'t, const N: usize> {
 
 impl<const N: usize> Picked<'_, N> {
     /// The expansion for lane `lane`, per unit irradiance.
-    pub fn expansion(&self, lane: usize) -> &Expansion {
+    fn expansion(&self, lane: usize) -> &Expansion {
         &self.cell[self.nodes[lane]]
+    }
+
+    /// Σ_m a_lm y_lm per degree l (rows) and lane (columns) for the basis
+    /// values `y`. The lanes' sums run side by side: one sum of 45 terms
+    /// per lane after another is a chain of dependent additions, which cost
+    /// the control a third of its time at sunset (session 14).
+    pub fn degrees(&self, y: &Expansion) -> [[f64; N]; L_MAX + 1] {
+        let expansions: [&Expansion; N] = std::array::from_fn(|j| self.expansion(j));
+        let mut degrees = [[0.0; N]; L_MAX + 1];
+        for (l, degree) in degrees.iter_mut().enumerate() {
+            for i in index(l, 0)..=index(l, l) {
+                for (d, a) in degree.iter_mut().zip(&expansions) {
+                    *d += a[i] * y[i];
+                }
+            }
+        }
+        degrees
+    }
+
+    /// Σ_lm a_lm y_lm per lane: the expansions at the basis values `y`.
+    pub fn evaluate(&self, y: &Expansion) -> [f64; N] {
+        let expansions: [&Expansion; N] = std::array::from_fn(|j| self.expansion(j));
+        let mut sums = [0.0; N];
+        for (i, y) in y.iter().enumerate() {
+            for (s, a) in sums.iter_mut().zip(&expansions) {
+                *s += a[i] * y;
+            }
+        }
+        sums
     }
 }
 

@@ -92,10 +92,7 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-use super::control::{
-    index as control_index, CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX,
-    NODES,
-};
+use super::control::{CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX, NODES};
 use super::guide::SkyGuide;
 use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
@@ -398,16 +395,9 @@ impl ControlAt<'_> {
     /// Subtracts beta × A(dir): the path going on along `dir` from this
     /// point with weight `beta` now estimates L − A.
     fn subtract(&self, lanes: &SpectralLanes, dir: DVec3, beta: &Lanes, radiance: &mut Lanes) {
-        let y = self.frame.basis(dir);
+        let a = self.picked.evaluate(&self.frame.basis(dir));
         for j in 0..LANES {
-            let a: f64 = self
-                .picked
-                .expansion(j)
-                .iter()
-                .zip(&y)
-                .map(|(a, y)| a * y)
-                .sum();
-            radiance[j] -= beta[j] * lanes.sun_irradiance[j] * a;
+            radiance[j] -= beta[j] * lanes.sun_irradiance[j] * a[j];
         }
     }
 }
@@ -506,21 +496,17 @@ impl<'a> Integrator<'a> {
         radiance: &mut Lanes,
     ) {
         let y = at.frame.basis(dir);
+        let degrees = at.picked.degrees(&y);
         for j in 0..LANES {
-            let a = at.picked.expansion(j);
             let rayleigh_k2 = rayleigh::phase_legendre_2(lanes.rayleigh_gamma[j]);
-            let mut sum = 0.0;
-            for (l, aerosol_k) in self.aerosol_moments.iter().enumerate() {
-                let rayleigh_k = match l {
-                    0 => 1.0,
-                    2 => rayleigh_k2,
-                    _ => 0.0,
-                };
-                let degree: f64 = (control_index(l, 0)..=control_index(l, l))
-                    .map(|i| a[i] * y[i])
-                    .sum();
-                sum += (c.rayleigh[j] * rayleigh_k + c.aerosol_scattering[j] * aerosol_k) * degree;
-            }
+            let aerosol: f64 = self
+                .aerosol_moments
+                .iter()
+                .zip(&degrees)
+                .map(|(k, d)| k * d[j])
+                .sum();
+            let sum = c.rayleigh[j] * (degrees[0][j] + rayleigh_k2 * degrees[2][j])
+                + c.aerosol_scattering[j] * aerosol;
             radiance[j] += beta[j] * lanes.sun_irradiance[j] * sum;
         }
     }
