@@ -93,7 +93,7 @@ use std::f64::consts::PI;
 use glam::DVec3;
 
 use super::control::{CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX, NODES};
-use super::guide::SkyGuide;
+use super::guide::{GuideAt, SkyGuide};
 use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDistribution};
@@ -764,8 +764,9 @@ impl<'a> Integrator<'a> {
         let mut depth = depth;
         let mut reference = reference;
         while let Some(n) = next {
-            let (origin, dir, beta) = match n {
-                Next::Vertex(vertex) => vertex,
+            // The guide at the vertex, where choosing its direction looked it up.
+            let ((origin, dir, beta), at) = match n {
+                Next::Vertex(vertex) => (vertex, None),
                 Next::Scatter(x, dir_in, mut beta, control) => {
                     let c = self.medium.coefficients(x.length(), lanes);
                     let copies = reference.and_then(|reference| {
@@ -783,22 +784,23 @@ impl<'a> Integrator<'a> {
                         None => {
                             // Without the guide's importance: roulette as
                             // for any other vertex.
-                            let new_dir = self.scatter(x, dir_in, &c, &mut beta, lanes, rng);
+                            let (new_dir, at) = self.scatter(x, dir_in, &c, &mut beta, lanes, rng);
                             if self.options.russian_roulette
                                 && depth >= 2
                                 && !survives_roulette(&mut beta, lanes.active, depth, split, rng)
                             {
                                 break;
                             }
-                            if let Some(at) = &control {
-                                at.subtract(lanes, new_dir, &beta, radiance);
+                            if let Some(control) = &control {
+                                control.subtract(lanes, new_dir, &beta, radiance);
                             }
-                            (x, new_dir, beta)
+                            ((x, new_dir, beta), at)
                         }
                     }
                 }
             };
-            next = self.sunlit_segment(origin, dir, depth, &beta, lanes, radiance, rng);
+            let segment = (origin, dir, depth, at);
+            next = self.sunlit_segment(segment, &beta, lanes, radiance, rng);
             depth += 1;
             self.roulette_vertex(&mut next, depth, split, lanes, rng);
         }
@@ -823,23 +825,23 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
-    ) -> Vertex {
+    ) -> (Vertex, Option<GuideAt<'a>>) {
         let share = 1.0 / copies as f64;
         let beta = beta.map(|b| b * share);
         for _ in 1..copies {
             let mut copy = beta;
-            let new_dir = self.scatter(x, dir_in, c, &mut copy, lanes, rng);
+            let (new_dir, _) = self.scatter(x, dir_in, c, &mut copy, lanes, rng);
             if let Some(at) = control {
                 at.subtract(lanes, new_dir, &copy, radiance);
             }
             self.walk_sunlit(Next::Vertex((x, new_dir, copy)), walk, lanes, radiance, rng);
         }
         let mut last = beta;
-        let new_dir = self.scatter(x, dir_in, c, &mut last, lanes, rng);
-        if let Some(at) = control {
-            at.subtract(lanes, new_dir, &last, radiance);
+        let (new_dir, at) = self.scatter(x, dir_in, c, &mut last, lanes, rng);
+        if let Some(control) = control {
+            control.subtract(lanes, new_dir, &last, radiance);
         }
-        (x, new_dir, last)
+        ((x, new_dir, last), at)
     }
 
     /// Russian roulette on `next` if it is a vertex with its direction
@@ -912,14 +914,13 @@ impl<'a> Integrator<'a> {
         Some((1, reference))
     }
 
-    /// One segment of [`Self::trace_sunlit`] after `depth` scatterings with
-    /// weight `beta`; returns the next vertex (position, direction, weight).
-    #[allow(clippy::too_many_arguments)]
+    /// One segment of [`Self::trace_sunlit`] from `origin` along `dir` after
+    /// `depth` scatterings with weight `beta` (`at`: the guide at `origin`,
+    /// if already looked up); returns the next vertex (position, direction,
+    /// weight).
     fn sunlit_segment(
         &self,
-        origin: DVec3,
-        dir: DVec3,
-        depth: u32,
+        (origin, dir, depth, at): (DVec3, DVec3, u32, Option<GuideAt<'a>>),
         beta: &Lanes,
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
@@ -927,7 +928,8 @@ impl<'a> Integrator<'a> {
     ) -> Option<Next<'a>> {
         let segment = self.segment(origin, dir, depth, beta, lanes, radiance)?;
         if let Some(guide) = self.guide {
-            return self.guided_segment(guide, &segment, beta, lanes, radiance, rng);
+            let at = at.unwrap_or_else(|| guide.at(self.medium, origin));
+            return self.guided_segment(&at, &segment, beta, lanes, radiance, rng);
         }
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
@@ -1070,7 +1072,7 @@ impl<'a> Integrator<'a> {
             let x = origin + dir * t;
             let c = self.medium.coefficients(x.length(), lanes);
             if let Some(b) = branch {
-                let (new_dir, pdf) = rng.replaying(&direction_u[b], |rng| {
+                let (new_dir, pdf, _) = rng.replaying(&direction_u[b], |rng| {
                     self.sample_scatter_direction(x, dir, &c, lanes, rng)
                 });
                 let mu = dir.dot(new_dir);
@@ -1157,19 +1159,18 @@ impl<'a> Integrator<'a> {
     }
 
     /// One path segment reached with weight `beta`: next-event points from
-    /// the guide's cached density of the ray
-    /// ([`super::guide::GuideAt::density`]), the path going on from its
-    /// first real scattering ([`Self::track_continuation`]).
+    /// the cached density of the ray of the guide `at` the segment's origin
+    /// ([`GuideAt::density`]), the path going on from its first real
+    /// scattering ([`Self::track_continuation`]).
     fn guided_segment(
         &self,
-        guide: &SkyGuide,
+        at: &GuideAt<'_>,
         segment: &Segment,
         beta: &Lanes,
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
     ) -> Option<Next<'a>> {
-        let at = guide.at(self.medium, segment.origin);
         let density = at.density(self.medium, segment.dir, segment.span);
         let n = (self
             .options
@@ -1239,7 +1240,7 @@ impl<'a> Integrator<'a> {
             Next::Vertex(vertex) => (vertex, None),
             Next::Scatter(x, dir, mut beta, control) => {
                 let c = self.medium.coefficients(x.length(), lanes);
-                let new_dir = self.scatter(x, dir, &c, &mut beta, lanes, rng);
+                let (new_dir, _) = self.scatter(x, dir, &c, &mut beta, lanes, rng);
                 ((x, new_dir, beta), control)
             }
         }
@@ -1272,7 +1273,8 @@ impl<'a> Integrator<'a> {
     }
 
     /// A new direction for a path along `dir` scattered at `x`
-    /// (coefficients `c`), weighting `beta` by σ_s p/pdf.
+    /// (coefficients `c`), weighting `beta` by σ_s p/pdf; with the guide at
+    /// `x` if the choice looked it up.
     fn scatter(
         &self,
         x: DVec3,
@@ -1281,13 +1283,13 @@ impl<'a> Integrator<'a> {
         beta: &mut Lanes,
         lanes: &SpectralLanes,
         rng: &mut Rng,
-    ) -> DVec3 {
-        let (new_dir, pdf) = self.sample_scatter_direction(x, dir, c, lanes, rng);
+    ) -> (DVec3, Option<GuideAt<'a>>) {
+        let (new_dir, pdf, at) = self.sample_scatter_direction(x, dir, c, lanes, rng);
         let mu = dir.dot(new_dir);
         for (j, b) in beta.iter_mut().enumerate() {
             *b *= self.scattering_phase(c, lanes, j, mu) / pdf;
         }
-        new_dir
+        (new_dir, at)
     }
 
     /// The sun's disc seen along `dir` through transmittance `beta`.
@@ -1356,7 +1358,8 @@ impl<'a> Integrator<'a> {
     /// A scattering direction and its density (per sr): with probability
     /// `sun_lobe`, from the phase function about the *sun's* direction, else
     /// about `dir`; the density is the mixture's (one-sample MIS, balance
-    /// heuristic). Skylight arriving along ω is mostly sunlight scattered
+    /// heuristic), and the guide at `x` where it was looked up (the segment
+    /// from `x` reads its densities). Skylight arriving along ω is mostly sunlight scattered
     /// once somewhere along ω, always through the angle between ω and the
     /// sun, so its angular shape is that phase function P(ω·ω_sun) — the
     /// aureole by day, the glow over the hidden sun at twilight. The phase
@@ -1368,22 +1371,22 @@ impl<'a> Integrator<'a> {
         c: &super::medium::Coefficients,
         lanes: &SpectralLanes,
         rng: &mut Rng,
-    ) -> (DVec3, f64) {
-        let guide = self
+    ) -> (DVec3, f64, Option<GuideAt<'a>>) {
+        let at = self
             .guide
             .filter(|g| {
                 self.options.sky_guide > 0.0
                     && (self.options.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
             })
-            .map(|g| g.at(self.medium, x))
-            .filter(super::guide::GuideAt::guides);
+            .map(|g| g.at(self.medium, x));
+        let guide = at.as_ref().filter(|at| at.guides());
         let g = if guide.is_some() {
             self.options.sky_guide
         } else {
             0.0
         };
         let alpha = self.options.sun_lobe();
-        let new_dir = match &guide {
+        let new_dir = match guide {
             Some(guide) if rng.uniform() < g => guide.sample(rng),
             _ if rng.uniform() < alpha => {
                 self.sample_phase_direction(self.sun_direction, c, lanes, rng)
@@ -1397,10 +1400,10 @@ impl<'a> Integrator<'a> {
         } else {
             phase
         };
-        if let Some(guide) = &guide {
+        if let Some(guide) = guide {
             pdf = (1.0 - g) * pdf + g * guide.pdf(new_dir);
         }
-        (new_dir, pdf)
+        (new_dir, pdf, at)
     }
 
     /// Density of [`Self::sample_phase_direction`] at cosine `mu`, per sr.
@@ -1448,7 +1451,8 @@ impl<'a> Integrator<'a> {
                 let next = self
                     .segment(origin, dir, depth, &beta, lanes, radiance)
                     .and_then(|segment| {
-                        self.guided_segment(guide, &segment, &beta, lanes, radiance, rng)
+                        let at = guide.at(self.medium, origin);
+                        self.guided_segment(&at, &segment, &beta, lanes, radiance, rng)
                     });
                 let Some(next) = next else { break };
                 let vertex;
@@ -1490,7 +1494,7 @@ impl<'a> Integrator<'a> {
                         if let Some(at) = &control {
                             self.control_in(at, &c, lanes, dir, &beta, radiance);
                         }
-                        dir = self.scatter(x, dir, &c, &mut beta, lanes, rng);
+                        (dir, _) = self.scatter(x, dir, &c, &mut beta, lanes, rng);
                         origin = x;
                         depth += 1;
                         scattered = true;
