@@ -39,17 +39,31 @@ fn same_seed_same_image_whatever_the_thread_count() {
 }
 
 #[test]
-fn every_preset_renders_finite_non_negative_pixels() {
+fn every_preset_renders_finite_pixels_non_negative_without_the_control_variate() {
     for (name, _) in skyrender::scene::PRESETS {
-        let pixels = render(&small(name, 16, 8, 2), 2);
+        let scene = small(name, 16, 8, 2);
+        let signed = scene
+            .render
+            .integrator
+            .resolved(scene.sun.elevation_deg)
+            .control_variate
+            == Some(true);
+        let pixels = render(&scene, 2);
         let luminance: Vec<f32> = pixels
             .iter()
             .map(|p| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2])
             .collect();
-        assert!(
-            luminance.iter().all(|y| y.is_finite() && *y >= 0.0),
-            "{name}"
-        );
+        assert!(luminance.iter().all(|y| y.is_finite()), "{name}");
+        let negative = luminance.iter().filter(|y| **y < 0.0).count();
+        if signed {
+            // The control variate's single estimates may be negative (their
+            // mean is not), and so, rarely, may a pixel of one full sample
+            // (sunset, 64×32 at 2 spp, seeds 0–3: 24 of 8192 pixels; at
+            // 4 spp 1; at 16 none).
+            assert!(negative * 20 <= luminance.len(), "{name}: {negative}");
+        } else {
+            assert_eq!(negative, 0, "{name}");
+        }
         assert!(luminance.iter().any(|y| *y > 0.0), "{name}");
     }
 }

@@ -37,7 +37,8 @@
 //!
 //! **Scattering directions** mix the phase function about the path's
 //! direction with the phase function about the sun's (`sun_lobe`: 0.3, 0.15
-//! with the sun high; see `Integrator::sample_scatter_direction`).
+//! with the sun high, 0 with the control variate on; see
+//! `Integrator::sample_scatter_direction`).
 //!
 //! **Segment estimates at low sun.** With the sun lower than
 //! [`LOW_SUN_ELEVATION_DEG`], `sunlight_samples` (1 by default there)
@@ -137,6 +138,7 @@ pub struct IntegratorOptions {
     pub sunlight_samples: Option<u32>,
     /// Share of scattering directions drawn from the phase function about
     /// the sun's direction instead of the path's, 0–1. Unset (the default):
+    /// [`CONTROL_SUN_LOBE`] with the control variate on,
     /// [`HIGH_SUN_LOBE`] with the sun higher than [`HIGH_SUN_ELEVATION_DEG`],
     /// else [`SUN_LOBE`] (see [`Self::resolved`]); an integrator built
     /// directly reads unset as [`SUN_LOBE`].
@@ -239,7 +241,8 @@ impl Default for IntegratorOptions {
 /// long rays that chance collisions rarely hit.
 pub const LOW_SUN_ELEVATION_DEG: f64 = 3.0;
 
-/// [`IntegratorOptions::sun_lobe`] unless the sun is high. The glow about
+/// [`IntegratorOptions::sun_lobe`] unless the sun is high or the control
+/// variate is on. The glow about
 /// the sun, hidden or low, holds much of the light a vertex sees: at
 /// twilight 0.15 instead needs 1.3× the time to equal noise.
 pub const SUN_LOBE: f64 = 0.3;
@@ -250,6 +253,12 @@ pub const SUN_LOBE: f64 = 0.3;
 pub const HIGH_SUN_LOBE: f64 = 0.15;
 /// See [`HIGH_SUN_LOBE`].
 pub const HIGH_SUN_ELEVATION_DEG: f64 = 30.0;
+/// [`IntegratorOptions::sun_lobe`] with the control variate on: the
+/// control takes out the once-scattered light's aureole, which the lobe
+/// samples for, and leaves it nothing to find. Fixed passes at 0.5°, 2° and
+/// 2.9° (seeds 1 and 3): 0.85–0.90× the time to equal noise of 0.3
+/// (`BENCHMARKS.md`, session 14); without the control, at 5°, 0 needs 1.7×.
+pub const CONTROL_SUN_LOBE: f64 = 0.0;
 /// Sun elevations (at the observer, from, to) with
 /// [`IntegratorOptions::control_variate`] on by default. Measured at fixed
 /// passes (`BENCHMARKS.md`, session 13): at 2° 0.68–0.69× the variance for
@@ -278,6 +287,9 @@ impl IntegratorOptions {
     pub fn resolved(&self, sun_elevation_deg: f64) -> Self {
         let low_sun = sun_elevation_deg < LOW_SUN_ELEVATION_DEG;
         let high_sun = sun_elevation_deg > HIGH_SUN_ELEVATION_DEG;
+        let control = self.control_variate.unwrap_or(
+            (CONTROL_ELEVATION_DEG.0..CONTROL_ELEVATION_DEG.1).contains(&sun_elevation_deg),
+        );
         Self {
             sunlight_samples: Some(self.sunlight_samples.unwrap_or(u32::from(low_sun))),
             sky_guide_sunlit: Some(self.sky_guide_sunlit.unwrap_or(low_sun)),
@@ -285,10 +297,10 @@ impl IntegratorOptions {
                 self.splitting
                     .unwrap_or(sun_elevation_deg < SPLITTING_ELEVATION_DEG),
             ),
-            control_variate: Some(self.control_variate.unwrap_or(
-                (CONTROL_ELEVATION_DEG.0..CONTROL_ELEVATION_DEG.1).contains(&sun_elevation_deg),
-            )),
-            sun_lobe: Some(self.sun_lobe.unwrap_or(if high_sun {
+            control_variate: Some(control),
+            sun_lobe: Some(self.sun_lobe.unwrap_or(if control {
+                CONTROL_SUN_LOBE
+            } else if high_sun {
                 HIGH_SUN_LOBE
             } else {
                 SUN_LOBE
@@ -1706,9 +1718,9 @@ mod tests {
         for (elevation_deg, samples, lobe, splitting, control) in [
             (-4.0, 1, SUN_LOBE, true, false),
             (-0.1, 1, SUN_LOBE, true, false),
-            (0.0, 1, SUN_LOBE, false, true),
-            (2.0, 1, SUN_LOBE, false, true),
-            (2.9, 1, SUN_LOBE, false, true),
+            (0.0, 1, CONTROL_SUN_LOBE, false, true),
+            (2.0, 1, CONTROL_SUN_LOBE, false, true),
+            (2.9, 1, CONTROL_SUN_LOBE, false, true),
             (3.0, 0, SUN_LOBE, false, false),
             (30.0, 0, SUN_LOBE, false, false),
             (30.1, 0, HIGH_SUN_LOBE, false, false),
@@ -1757,6 +1769,16 @@ mod tests {
             assert_eq!(options.resolved(2.0), options);
             assert_eq!(options.resolved(45.0), options);
         }
+        // An unset lobe follows the control variate as set, not the sun.
+        let control = |on: bool| IntegratorOptions {
+            control_variate: Some(on),
+            ..IntegratorOptions::default()
+        };
+        assert_eq!(control(false).resolved(2.0).sun_lobe, Some(SUN_LOBE));
+        assert_eq!(
+            control(true).resolved(45.0).sun_lobe,
+            Some(CONTROL_SUN_LOBE)
+        );
     }
 
     #[test]

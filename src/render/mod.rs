@@ -46,14 +46,14 @@ pub const ADAPTIVE_FROM_PASS: u32 = 2;
 /// The draft pass's weight in the film's average for the sun at
 /// `sun_elevation_deg` above the observer's horizon; every later sample
 /// weighs 1. Weights ∝ 1/variance minimise the mean's, and the draft's
-/// delta-tracked camera paths (see [`Renderer::integrator`]) have, per
+/// delta-tracked camera paths (see `Renderer::integrator`) have, per
 /// path, 6–16× the variance of a full pass's by day (sun 45°), 23–49× with
 /// the sun at 2° and 58–147× at −4°, where a rare collision in the sunlit
 /// air high above carries the light (four views at elevations 7–74°,
 /// `BENCHMARKS.md`, session 14). Any fixed weight keeps the mean unbiased;
 /// a positive one lets the draft alone show a first image. At twilight the
-/// old 1/8 doubled the single-scattered light's variance over 8 passes
-/// (absolute noise 0.296 against 0.214 with 1/100).
+/// old 1/8 nearly doubled the single-scattered light's variance over 8 passes
+/// (absolute noise 0.296 against 0.216 with 1/100).
 pub fn draft_weight(sun_elevation_deg: f64) -> f64 {
     if sun_elevation_deg < 0.0 {
         1.0 / 128.0
