@@ -256,7 +256,7 @@ pub const HIGH_SUN_ELEVATION_DEG: f64 = 30.0;
 /// [`IntegratorOptions::sun_lobe`] with the control variate on: the
 /// control takes out the once-scattered light's aureole, which the lobe
 /// samples for, and leaves it nothing to find. Fixed passes at 0.5°, 2° and
-/// 2.9° (seeds 1 and 3): 0.85–0.90× the time to equal noise of 0.3
+/// 2.9° (seeds 1 and 3): 0.84–0.90× the time to equal noise of 0.3
 /// (`BENCHMARKS.md`, session 14); without the control, at 5°, 0 needs 1.7×.
 pub const CONTROL_SUN_LOBE: f64 = 0.0;
 /// Sun elevations (at the observer, from, to) with
