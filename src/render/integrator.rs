@@ -845,8 +845,8 @@ impl<'a> Integrator<'a> {
         for _ in 1..copies {
             let mut copy = beta;
             let (new_dir, _) = self.scatter(x, dir_in, c, &mut copy, lanes, rng);
-            if let Some(at) = control {
-                at.subtract(lanes, new_dir, &copy, radiance);
+            if let Some(control) = control {
+                control.subtract(lanes, new_dir, &copy, radiance);
             }
             self.walk_sunlit(Next::Vertex((x, new_dir, copy)), walk, lanes, radiance, rng);
         }

@@ -51,9 +51,10 @@ pub const ADAPTIVE_FROM_PASS: u32 = 2;
 /// the sun at 2° and 58–147× at −4°, where a rare collision in the sunlit
 /// air high above carries the light (four views at elevations 7–74°,
 /// `BENCHMARKS.md`, session 14). Any fixed weight keeps the mean unbiased;
-/// a positive one lets the draft alone show a first image. At twilight the
-/// old 1/8 nearly doubled the single-scattered light's variance over 8 passes
-/// (absolute noise 0.296 against 0.216 with 1/100).
+/// a positive one lets the draft alone show a first image. By day 1/8 (at 1
+/// the draft doubled the upper sky's variance in a 24-pass midday render,
+/// session 6); at twilight 1/8 nearly doubled the single-scattered light's
+/// variance over 8 passes (absolute noise 0.296 against 0.216 with 1/100).
 pub fn draft_weight(sun_elevation_deg: f64) -> f64 {
     if sun_elevation_deg < 0.0 {
         1.0 / 128.0
