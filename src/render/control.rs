@@ -301,14 +301,8 @@ impl<const N: usize> Picked<'_, N> {
 
     /// Σ_lm a_lm y_lm per lane: the expansions at the basis values `y`.
     pub fn evaluate(&self, y: &Expansion) -> [f64; N] {
-        let expansions: [&Expansion; N] = std::array::from_fn(|j| self.expansion(j));
-        let mut sums = [0.0; N];
-        for (i, y) in y.iter().enumerate() {
-            for (s, a) in sums.iter_mut().zip(&expansions) {
-                *s += a[i] * y;
-            }
-        }
-        sums
+        let degrees = self.degrees(y);
+        std::array::from_fn(|j| degrees.iter().map(|d| d[j]).sum())
     }
 }
 

@@ -1511,39 +1511,27 @@ mod tests {
                 let rrt = TransmittanceEstimator::ChordResidualRatioTracking;
                 medium.transmittance(origin, dir, &lanes, rrt, Bounds::Tight, rng)
             };
-            let along = |rng: &mut Rng| {
+            // One pass of `transmittance_along` to `checkpoints` (and the end).
+            let pass = |checkpoints: &mut [(f64, Lanes)], to_end: bool, rng: &mut Rng| {
                 let rrt = TransmittanceEstimator::ResidualRatioTracking;
-                medium
-                    .transmittance_along(
-                        origin,
-                        dir,
-                        span,
-                        &lanes,
-                        rrt,
-                        Bounds::Tight,
-                        &mut [],
-                        true,
-                        rng,
-                    )
-                    .expect("a pass to the end")
-            };
-            // To a point 40 % along the span only (a segment estimate's
-            // in-scattering point).
-            let to_checkpoint = |rng: &mut Rng| {
-                let rrt = TransmittanceEstimator::ResidualRatioTracking;
-                let mut checkpoints = [(checkpoint, [0.0; LANES])];
-                let end = medium.transmittance_along(
+                medium.transmittance_along(
                     origin,
                     dir,
                     span,
                     &lanes,
                     rrt,
                     Bounds::Tight,
-                    &mut checkpoints,
-                    false,
+                    checkpoints,
+                    to_end,
                     rng,
-                );
-                assert!(end.is_none());
+                )
+            };
+            let along = |rng: &mut Rng| pass(&mut [], true, rng).expect("a pass to the end");
+            // To a point 40 % along the span only (a segment estimate's
+            // in-scattering point).
+            let to_checkpoint = |rng: &mut Rng| {
+                let mut checkpoints = [(checkpoint, [0.0; LANES])];
+                assert!(pass(&mut checkpoints, false, rng).is_none());
                 checkpoints[0].1
             };
             let estimators: [(&str, Estimate, f64, &Lanes); 4] = [
