@@ -66,7 +66,7 @@ impl LocalAxes {
     pub fn new(x: DVec3, sun_direction: DVec3) -> Self {
         let up = x.normalize();
         let horizontal = sun_direction - up * sun_direction.dot(up);
-        let toward_sun = if horizontal.length() > 1e-9 {
+        let toward_sun = if horizontal.length_squared() > 1e-18 {
             horizontal.normalize()
         } else {
             super::integrator::orthonormal_basis(up).0

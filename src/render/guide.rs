@@ -39,7 +39,7 @@ use std::sync::OnceLock;
 
 use glam::DVec3;
 
-use super::directions::{horizon_cosine, Grid, SunCells, ViewFrame};
+use super::directions::{Grid, SunCells, ViewFrame};
 use super::medium::{Medium, Span};
 use super::sunlight::{CachedRayDensity, DensityBuilder, DensitySlots, InScatterDistribution};
 use crate::rng::Rng;
@@ -111,8 +111,10 @@ impl SkyGuide {
     /// the sun low, sunlit points see that glow too and are guided as well
     /// (`sky_guide_sunlit` of [`super::IntegratorOptions`]).
     pub fn shadowed(&self, x: DVec3) -> bool {
-        let r = x.length();
-        x.dot(self.sun_direction) / r < horizon_cosine(self.planet_radius_m, r)
+        // cos θ_sun < cos θ_horizon = −√(1 − R²/r²), squared: with d = x·ŝ,
+        // d < 0 and d² > r² − R² (no root or division on this per-vertex test).
+        let d = x.dot(self.sun_direction);
+        d < 0.0 && d * d > x.length_squared() - self.planet_radius_m * self.planet_radius_m
     }
 
     /// The guide at point `x` (m, planet-centred, inside the atmosphere).
@@ -128,6 +130,7 @@ impl SkyGuide {
                 x,
                 self.sun_direction,
             ),
+            chosen: None,
         }
     }
 
@@ -219,9 +222,27 @@ pub struct GuideAt<'a> {
     guide: &'a SkyGuide,
     cell: &'a PointCell,
     frame: ViewFrame,
+    /// The direction the path left along and its cell ([`Self::choose`]):
+    /// its density and its segment's both need the cell.
+    chosen: Option<(DVec3, Option<usize>)>,
 }
 
 impl GuideAt<'_> {
+    /// Record `dir` as the direction the path leaves along, with its cell
+    /// where [`Self::sample`] drew it (`cell`), else looked up here once.
+    pub fn choose(&mut self, dir: DVec3, cell: Option<usize>) {
+        let cell = cell.or_else(|| self.frame.cell_index(DIRECTION_GRID, dir));
+        self.chosen = Some((dir, cell));
+    }
+
+    /// The direction cell of `dir`, or `None` above the atmosphere's limb.
+    fn cell_of(&self, dir: DVec3) -> Option<usize> {
+        match self.chosen {
+            Some((chosen, cell)) if chosen == dir => cell,
+            _ => self.frame.cell_index(DIRECTION_GRID, dir),
+        }
+    }
+
     /// Whether the table has any light to guide toward.
     pub fn guides(&self) -> bool {
         !self.cell.cdf.is_empty()
@@ -229,22 +250,24 @@ impl GuideAt<'_> {
 
     /// A direction ∝ the tabulated light (piecewise constant per cell,
     /// uniform in solid angle within one); only where [`Self::guides`].
-    pub fn sample(&self, rng: &mut Rng) -> DVec3 {
+    /// Returns the direction and its cell.
+    pub fn sample(&self, rng: &mut Rng) -> (DVec3, usize) {
         let u = rng.uniform();
         let cells = DIRECTION_GRID.cells();
         let d = self.cell.cdf[1..]
             .partition_point(|&c| c <= u)
             .min(cells - 1);
-        self.frame.sample_cell(
+        let dir = self.frame.sample_cell(
             DIRECTION_GRID,
             d,
             [rng.uniform(), rng.uniform(), rng.uniform()],
-        )
+        );
+        (dir, d)
     }
 
     /// The density of [`Self::sample`] at `dir`, per sr.
     pub fn pdf(&self, dir: DVec3) -> f64 {
-        let Some(d) = self.frame.cell_index(DIRECTION_GRID, dir) else {
+        let Some(d) = self.cell_of(dir) else {
             return 0.0;
         };
         if self.cell.cdf.is_empty() {
@@ -263,7 +286,7 @@ impl GuideAt<'_> {
     /// `span`: its direction cell's representative ray, mapped onto it.
     pub fn density(&self, medium: &Medium, dir: DVec3, span: Span) -> CachedRayDensity<'_> {
         let cell = self.cell;
-        let ray = self.frame.cell_index(DIRECTION_GRID, dir).and_then(|d| {
+        let ray = self.cell_of(dir).and_then(|d| {
             cell.rays.get(d, || {
                 let central = cell.frame.cell_direction(DIRECTION_GRID, d);
                 self.guide.builder.build(medium, cell.origin_m, central)
@@ -328,12 +351,20 @@ mod tests {
             let mut counts = vec![0u32; cells];
             let n = 200_000;
             let mut rng = Rng::new(3, 1);
+            let mut memo = guide.at(&medium, x);
             for _ in 0..n {
-                let w = at.sample(&mut rng);
+                let (w, drawn) = at.sample(&mut rng);
                 let d = at.frame.cell_index(DIRECTION_GRID, w).unwrap();
+                assert_eq!(
+                    d, drawn,
+                    "a sampled direction lies in the cell it was drawn from"
+                );
                 let p = at.cell.cdf[d + 1] - at.cell.cdf[d];
                 let density = p / at.frame.cell_solid_angle(DIRECTION_GRID, d);
                 assert!((at.pdf(w) / density - 1.0).abs() < 1e-12);
+                // The chosen direction's cell, remembered, reads the same.
+                memo.choose(w, Some(drawn));
+                assert_eq!(memo.pdf(w).to_bits(), at.pdf(w).to_bits());
                 counts[d] += 1;
             }
             for (d, &count) in counts.iter().enumerate() {

@@ -1386,7 +1386,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         rng: &mut Rng,
     ) -> (DVec3, f64, Option<GuideAt<'a>>) {
-        let at = self
+        let mut at = self
             .guide
             .filter(|g| {
                 self.options.sky_guide > 0.0
@@ -1400,13 +1400,21 @@ impl<'a> Integrator<'a> {
             0.0
         };
         let alpha = self.options.sun_lobe();
-        let new_dir = match guide {
-            Some(guide) if rng.uniform() < g => guide.sample(rng),
-            _ if rng.uniform() < alpha => {
-                self.sample_phase_direction(self.sun_direction, c, lanes, rng)
+        let (new_dir, cell) = match guide {
+            Some(guide) if rng.uniform() < g => {
+                let (new_dir, cell) = guide.sample(rng);
+                (new_dir, Some(cell))
             }
-            _ => self.sample_phase_direction(dir, c, lanes, rng),
+            _ if rng.uniform() < alpha => (
+                self.sample_phase_direction(self.sun_direction, c, lanes, rng),
+                None,
+            ),
+            _ => (self.sample_phase_direction(dir, c, lanes, rng), None),
         };
+        if let Some(at) = at.as_mut() {
+            at.choose(new_dir, cell);
+        }
+        let guide = at.as_ref().filter(|at| at.guides());
         let phase = self.phase_mixture_pdf(c, lanes, dir.dot(new_dir));
         let mut pdf = if alpha > 0.0 {
             let lobe = self.phase_mixture_pdf(c, lanes, self.sun_direction.dot(new_dir));
