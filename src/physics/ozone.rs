@@ -70,7 +70,8 @@ impl CrossSections {
 /// Index and weight for linear interpolation between table temperatures.
 pub fn temperature_weight(temperature_k: f64) -> (usize, f64) {
     let x = ((temperature_k - TABLE_TEMPERATURES_K[0]) / 10.0).clamp(0.0, 10.0);
-    let i = (x.floor() as usize).min(9);
+    // x ≥ 0, so truncation is the floor (and no libm call per look-up).
+    let i = (x as usize).min(9);
     (i, x - i as f64)
 }
 
