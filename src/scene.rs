@@ -264,6 +264,8 @@ impl Scene {
             c.get("kind").and_then(toml::Value::as_str) == Some("fisheye")
                 && !c.contains_key("fov_deg")
         });
+        // From the text again, not from `table`: only then do serde's errors
+        // (unknown fields, wrong types) keep their line and column.
         let mut scene: Self = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         if fisheye_without_fov {
             scene.camera.fov_deg = CameraKind::Fisheye.default_fov_deg();
