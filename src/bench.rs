@@ -60,7 +60,8 @@ pub struct BenchArgs {
     #[arg(long)]
     pub ablation: bool,
     /// Only these ablation variants (names as printed, e.g.
-    /// `camera_samples=0`; implies --ablation).
+    /// `camera_samples=0`), or any `[render.integrator]` option as
+    /// `key=value` (e.g. `sky_guide=0.35`); implies --ablation.
     #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
     pub variants: Option<Vec<String>>,
     /// Also measure parallel efficiency from 1 to all threads.
@@ -441,7 +442,7 @@ pub struct SceneDetail {
 #[derive(Clone, Debug, Serialize)]
 pub struct AblationRow {
     pub scene: String,
-    pub variant: &'static str,
+    pub variant: String,
     pub noise_at_budget: f64,
     /// Render time the variant actually took (more than the budget where one
     /// pass each overran it), s.
@@ -604,23 +605,84 @@ pub fn ablation_variants() -> Vec<Variant> {
     ]
 }
 
-/// The ablation variants named in `names` (all of them for `None`), or an
-/// error naming the unknown one and the valid names.
-fn selected_variants(names: Option<&[String]>) -> Result<Vec<Variant>, String> {
+/// A variant to run: one of [`ablation_variants`], or any integrator
+/// option set by name (`key=value`, as in a scene file's
+/// `[render.integrator]` table).
+enum Selected {
+    Listed(Variant),
+    Option {
+        name: String,
+        key: String,
+        value: toml::Value,
+    },
+}
+
+impl Selected {
+    fn name(&self) -> &str {
+        match self {
+            Self::Listed((name, _)) => name,
+            Self::Option { name, .. } => name,
+        }
+    }
+
+    /// `scene` with the variant's change, checked as a scene file is.
+    fn apply(&self, scene: &Scene) -> Result<Scene, String> {
+        let mut scene = scene.clone();
+        match self {
+            Self::Listed((_, change)) => change(&mut scene),
+            Self::Option { name, key, value } => {
+                // toml's messages run over lines ("…\nin `key`"): one line here.
+                let fail = |e: &dyn std::fmt::Display| {
+                    let message = e.to_string();
+                    let message: Vec<&str> = message.lines().map(str::trim).collect();
+                    format!("--variants: '{name}': {}", message.join(" "))
+                };
+                let mut options =
+                    toml::Table::try_from(&scene.render.integrator).map_err(|e| fail(&e))?;
+                options.insert(key.clone(), value.clone());
+                scene.render.integrator = options.try_into().map_err(|e| fail(&e))?;
+                scene.validate().map_err(|e| fail(&e))?;
+            }
+        }
+        Ok(scene)
+    }
+}
+
+/// The ablation variants named in `names` (all of them for `None`): listed
+/// ones by name, others as `key=value` integrator options (the value a TOML
+/// value, or else a string: `shadow_transmittance=ratio-tracking`); an
+/// error names a variant that is neither, or whose option is unknown or
+/// invalid, with the valid names — before any measurement.
+fn selected_variants(names: Option<&[String]>) -> Result<Vec<Selected>, String> {
     let all = ablation_variants();
     let Some(names) = names else {
-        return Ok(all);
+        return Ok(all.into_iter().map(Selected::Listed).collect());
     };
     names
         .iter()
         .map(|n| {
-            all.iter().find(|(v, _)| v == n).copied().ok_or_else(|| {
-                let valid: Vec<&str> = all.iter().map(|(v, _)| *v).collect();
+            if let Some(&listed) = all.iter().find(|(v, _)| v == n) {
+                return Ok(Selected::Listed(listed));
+            }
+            let valid: Vec<&str> = all.iter().map(|(v, _)| *v).collect();
+            let unknown = || {
                 format!(
-                    "--variants: unknown variant '{n}' (valid: {})",
+                    "--variants: unknown variant '{n}' (valid: {}, or an integrator option as key=value)",
                     valid.join(", ")
                 )
-            })
+            };
+            let (key, text) = n.split_once('=').ok_or_else(unknown)?;
+            let value = toml::from_str::<toml::Table>(&format!("v = {text}"))
+                .ok()
+                .and_then(|mut t| t.remove("v"))
+                .unwrap_or_else(|| toml::Value::String(text.to_owned()));
+            let selected = Selected::Option {
+                name: n.clone(),
+                key: key.trim().to_owned(),
+                value,
+            };
+            selected.apply(&Scene::default())?;
+            Ok(selected)
         })
         .collect()
 }
@@ -803,6 +865,12 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         ));
     }
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
+    // Checked before anything is measured.
+    let variants = if args.ablation || args.variants.is_some() {
+        selected_variants(args.variants.as_deref())?
+    } else {
+        Vec::new()
+    };
     let cpus = std::thread::available_parallelism().map_or(1, std::num::NonZeroUsize::get);
     let threads = args.threads.unwrap_or(cpus);
     if !(1..=1024).contains(&threads) {
@@ -871,17 +939,16 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             target_met: time_to_target.map(|t| t <= TARGET_BUDGET_S),
             run: run.clone(),
         });
-        if (args.ablation || args.variants.is_some()) && name != PREVIEW {
-            for (variant, apply) in selected_variants(args.variants.as_deref())? {
-                eprintln!("bench: {name}: ablation {variant}");
-                let mut s = scene.clone();
-                apply(&mut s);
+        if name != PREVIEW {
+            for variant in &variants {
+                eprintln!("bench: {name}: ablation {}", variant.name());
+                let s = variant.apply(scene)?;
                 let v = pool.install(|| measure_noise(&s, budget_s, seed))?;
                 let ratio =
                     (v.noise * v.noise * v.seconds / (run.noise * run.noise * run.seconds)).sqrt();
                 ablation.push(AblationRow {
                     scene: name.clone(),
-                    variant,
+                    variant: variant.name().to_owned(),
                     noise_at_budget: v.noise,
                     seconds: v.seconds,
                     noise_ratio: ratio,
@@ -1309,7 +1376,7 @@ mod tests {
         let names = ["camera_samples=0".to_owned(), "sun_lobe=0.5".to_owned()];
         let picked = selected_variants(Some(&names)).unwrap();
         assert_eq!(
-            picked.iter().map(|(v, _)| *v).collect::<Vec<_>>(),
+            picked.iter().map(Selected::name).collect::<Vec<_>>(),
             ["camera_samples=0", "sun_lobe=0.5"]
         );
         let err = selected_variants(Some(&["nope".to_owned()])).err().unwrap();
@@ -1318,6 +1385,49 @@ mod tests {
             selected_variants(None).unwrap().len(),
             ablation_variants().len()
         );
+    }
+
+    #[test]
+    fn any_integrator_option_is_a_variant() {
+        let scene = Scene::default();
+        let names = [
+            "sky_guide=0.35",
+            "camera_branches=3",
+            "shadow_transmittance=ratio-tracking",
+            "splitting=true",
+        ]
+        .map(str::to_owned);
+        let picked = selected_variants(Some(&names)).unwrap();
+        let applied: Vec<_> = picked.iter().map(|v| v.apply(&scene).unwrap()).collect();
+        let options = |i: usize| &applied[i].render.integrator;
+        assert_eq!(options(0).sky_guide, 0.35);
+        assert_eq!(options(1).camera_branches, 3);
+        assert_eq!(
+            options(2).shadow_transmittance,
+            TransmittanceEstimator::RatioTracking
+        );
+        assert_eq!(options(3).splitting, Some(true));
+        // Everything else as it was.
+        let mut expected = scene.render.integrator.clone();
+        expected.sky_guide = 0.35;
+        assert_eq!(*options(0), expected);
+        // Unknown options, wrong types and values out of range name the
+        // variant before anything runs.
+        for (bad, says) in [
+            ("sky_gide=0.3", "unknown field"),
+            (
+                "sky_guide=abc",
+                "invalid type: string \"abc\", expected f64 in `sky_guide`",
+            ),
+            ("sky_guide=7", "7 is outside the valid range 0 to 1"),
+            ("camera_branches", "unknown variant"),
+        ] {
+            let err = selected_variants(Some(&[bad.to_owned()])).err().unwrap();
+            assert!(
+                err.contains("--variants") && err.contains(says),
+                "{bad}: {err}"
+            );
+        }
     }
 
     #[test]
