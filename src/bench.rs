@@ -552,7 +552,7 @@ pub fn ablation_variants() -> Vec<Variant> {
             s.render.integrator.sunlight_samples = Some(1);
         }),
         ("sky_guide=0", |s| {
-            s.render.integrator.sky_guide = 0.0;
+            s.render.integrator.sky_guide = Some(0.0);
         }),
         ("sky_guide_sunlit=false", |s| {
             s.render.integrator.sky_guide_sunlit = Some(false);
@@ -561,7 +561,7 @@ pub fn ablation_variants() -> Vec<Variant> {
             s.render.integrator.sky_guide_sunlit = Some(true);
         }),
         ("sky_guide=0.5", |s| {
-            s.render.integrator.sky_guide = 0.5;
+            s.render.integrator.sky_guide = Some(0.5);
         }),
         ("shadow_samples=1", |s| {
             s.render.integrator.shadow_samples = 1;
@@ -1400,7 +1400,7 @@ mod tests {
         let picked = selected_variants(Some(&names)).unwrap();
         let applied: Vec<_> = picked.iter().map(|v| v.apply(&scene).unwrap()).collect();
         let options = |i: usize| &applied[i].render.integrator;
-        assert_eq!(options(0).sky_guide, 0.35);
+        assert_eq!(options(0).sky_guide, Some(0.35));
         assert_eq!(options(1).camera_branches, 3);
         assert_eq!(
             options(2).shadow_transmittance,
@@ -1409,7 +1409,7 @@ mod tests {
         assert_eq!(options(3).splitting, Some(true));
         // Everything else as it was.
         let mut expected = scene.render.integrator.clone();
-        expected.sky_guide = 0.35;
+        expected.sky_guide = Some(0.35);
         assert_eq!(*options(0), expected);
         // Unknown options, wrong types and values out of range name the
         // variant before anything runs.

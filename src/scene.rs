@@ -355,7 +355,9 @@ impl Scene {
         if let Some(share) = i.sun_lobe {
             check_range("sun lobe", share, 0.0, 1.0)?;
         }
-        check_range("sky guide", i.sky_guide, 0.0, 1.0)?;
+        if let Some(share) = i.sky_guide {
+            check_range("sky guide", share, 0.0, 1.0)?;
+        }
         check_count(
             "forced collision depth",
             i.forced_collision_depth as usize,

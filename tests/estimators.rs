@@ -520,7 +520,7 @@ fn sky_guide_is_unbiased() {
             let (reference, reference_se) = run(
                 IntegratorOptions {
                     camera_samples: 0,
-                    sky_guide: 0.0,
+                    sky_guide: Some(0.0),
                     forced_collision_depth: 0,
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
@@ -529,14 +529,14 @@ fn sky_guide_is_unbiased() {
             );
             let variants = [
                 IntegratorOptions {
-                    sky_guide: 0.5,
+                    sky_guide: Some(0.5),
                     sky_guide_sunlit: Some(true),
                     shadow_samples: 1,
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
                 },
                 IntegratorOptions {
-                    sky_guide: 0.25,
+                    sky_guide: Some(0.35),
                     sunlight_samples: Some(2),
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
@@ -555,7 +555,7 @@ fn sky_guide_is_unbiased() {
                 let what = format!(
                     "{altitude_m} m, view ({az}, {el}), order {order:?}, guide {}, shadow {}, \
                      sunlight {}, splitting {:?}",
-                    options.sky_guide,
+                    options.sky_guide(),
                     options.shadow_samples,
                     options.sunlight_samples(),
                     options.splitting
@@ -606,7 +606,7 @@ fn the_control_variate_is_unbiased() {
         let reference = run(
             IntegratorOptions {
                 camera_samples: 0,
-                sky_guide: 0.0,
+                sky_guide: Some(0.0),
                 forced_collision_depth: 0,
                 ..IntegratorOptions::default()
             },

@@ -51,7 +51,7 @@
 //! the sun, delta tracking wins at equal time.
 //!
 //! **In the planet's shadow** a quarter of the scattering directions
-//! (`sky_guide`) come from the table of incoming once-scattered light
+//! (`sky_guide`; 0.35 with the sun below the horizon) come from the table of incoming once-scattered light
 //! ([`super::guide`]): there the light comes from the sunlit air above the
 //! horizon, which no phase function about a fixed axis finds. With the sun
 //! low, sunlit points are guided too (`sky_guide_sunlit`).
@@ -145,11 +145,12 @@ pub struct IntegratorOptions {
     pub sun_lobe: Option<f64>,
     /// Share of scattering directions drawn, at points in the planet's
     /// shadow, from the table of incoming once-scattered light there
-    /// ([`SkyGuide`]) instead of the phase functions, 0–1. Default 0.25: at
-    /// twilight (−4°) the time to equal noise is 0.74–0.90× that without
-    /// (two seed pairs, session 10; 0.15 and 0.35 alike, 0.5 no better than
-    /// none); by day no vertex lies in the shadow and nothing changes.
-    pub sky_guide: f64,
+    /// ([`SkyGuide`]) instead of the phase functions, 0–1. Unset (the
+    /// default): [`SHADOW_SKY_GUIDE`] with the sun below the horizon,
+    /// else [`SKY_GUIDE`] (see [`Self::resolved`]); an integrator built
+    /// directly reads unset as [`SKY_GUIDE`]. By day no vertex lies in the
+    /// shadow and nothing changes.
+    pub sky_guide: Option<f64>,
     /// Whether [`Self::sky_guide`] also guides directions at sunlit points.
     /// Unset (the default): with the sun lower than [`LOW_SUN_ELEVATION_DEG`]
     /// (see [`Self::resolved`]), where the glow low over the sun's azimuth
@@ -217,7 +218,7 @@ impl Default for IntegratorOptions {
             camera_branches: 4,
             sunlight_samples: None,
             sun_lobe: None,
-            sky_guide: 0.25,
+            sky_guide: None,
             sky_guide_sunlit: None,
             shadow_samples: 0,
             forced_collision_depth: 1,
@@ -268,11 +269,28 @@ pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
 /// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
 /// is on by default.
 pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
+/// [`IntegratorOptions::sky_guide`] with the sun above the horizon: at
+/// twilight before roulette and splitting, 0.74–0.90× the time to equal
+/// noise of none (two seed pairs, session 10; 0.15 and 0.35 alike, 0.5 no
+/// better than none); at sunset, with the control variate, 0.15 and 0.35
+/// need 1.02–1.09× its time (`BENCHMARKS.md`, session 15).
+pub const SKY_GUIDE: f64 = 0.25;
+/// [`IntegratorOptions::sky_guide`] with the sun below the horizon
+/// ([`SPLITTING_ELEVATION_DEG`]): with roulette and splitting on, twilight
+/// (−4°) needs 0.93× the time to equal noise of 0.25 (7 seeds, 0.86–1.05;
+/// 0.4: 0.96×, 0.15: 1.15–1.20×; `BENCHMARKS.md`, session 15).
+pub const SHADOW_SKY_GUIDE: f64 = 0.35;
 
 impl IntegratorOptions {
     /// Next-event points per segment ([`Self::sunlight_samples`]; unset = 0).
     pub fn sunlight_samples(&self) -> u32 {
         self.sunlight_samples.unwrap_or(0)
+    }
+
+    /// Share of directions from the guide's table ([`Self::sky_guide`];
+    /// unset = [`SKY_GUIDE`]).
+    pub fn sky_guide(&self) -> f64 {
+        self.sky_guide.unwrap_or(SKY_GUIDE)
     }
 
     /// Share of directions about the sun's ([`Self::sun_lobe`]; unset =
@@ -292,6 +310,13 @@ impl IntegratorOptions {
         );
         Self {
             sunlight_samples: Some(self.sunlight_samples.unwrap_or(u32::from(low_sun))),
+            sky_guide: Some(self.sky_guide.unwrap_or(
+                if sun_elevation_deg < SPLITTING_ELEVATION_DEG {
+                    SHADOW_SKY_GUIDE
+                } else {
+                    SKY_GUIDE
+                },
+            )),
             sky_guide_sunlit: Some(self.sky_guide_sunlit.unwrap_or(low_sun)),
             splitting: Some(
                 self.splitting
@@ -1389,13 +1414,13 @@ impl<'a> Integrator<'a> {
         let mut at = self
             .guide
             .filter(|g| {
-                self.options.sky_guide > 0.0
+                self.options.sky_guide() > 0.0
                     && (self.options.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
             })
             .map(|g| g.at(self.medium, x));
         let guide = at.as_ref().filter(|at| at.guides());
         let g = if guide.is_some() {
-            self.options.sky_guide
+            self.options.sky_guide()
         } else {
             0.0
         };
@@ -1718,11 +1743,15 @@ mod tests {
                 auto.sun_lobe,
                 auto.sky_guide_sunlit,
                 auto.splitting,
-                auto.control_variate
+                auto.control_variate,
+                auto.sky_guide
             ),
-            (None, None, None, None, None)
+            (None, None, None, None, None, None)
         );
-        assert_eq!((auto.sunlight_samples(), auto.sun_lobe()), (0, SUN_LOBE));
+        assert_eq!(
+            (auto.sunlight_samples(), auto.sun_lobe(), auto.sky_guide()),
+            (0, SUN_LOBE, SKY_GUIDE)
+        );
         for (elevation_deg, samples, lobe, splitting, control) in [
             (-4.0, 1, SUN_LOBE, true, false),
             (-0.1, 1, SUN_LOBE, true, false),
@@ -1741,14 +1770,20 @@ mod tests {
                     resolved.sun_lobe,
                     resolved.sky_guide_sunlit,
                     resolved.splitting,
-                    resolved.control_variate
+                    resolved.control_variate,
+                    resolved.sky_guide
                 ),
                 (
                     Some(samples),
                     Some(lobe),
                     Some(samples == 1),
                     Some(splitting),
-                    Some(control)
+                    Some(control),
+                    Some(if splitting {
+                        SHADOW_SKY_GUIDE
+                    } else {
+                        SKY_GUIDE
+                    })
                 ),
                 "{elevation_deg}°"
             );
@@ -1759,6 +1794,7 @@ mod tests {
                     sky_guide_sunlit: None,
                     splitting: None,
                     control_variate: None,
+                    sky_guide: None,
                     ..resolved
                 },
                 auto
@@ -1766,6 +1802,7 @@ mod tests {
         }
         for (samples, lobe, sunlit, splitting) in [(0, 0.0, true, true), (3, 0.5, false, false)] {
             let options = IntegratorOptions {
+                sky_guide: Some(lobe),
                 sunlight_samples: Some(samples),
                 sun_lobe: Some(lobe),
                 sky_guide_sunlit: Some(sunlit),

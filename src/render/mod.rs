@@ -140,7 +140,7 @@ impl Renderer {
             camera_densities: CameraDensities::new(&medium, observer_m, sun_direction),
             sky_guide: {
                 let i = &options;
-                (i.sky_guide > 0.0 || i.shadow_samples > 0 || i.sunlight_samples() > 0)
+                (i.sky_guide() > 0.0 || i.shadow_samples > 0 || i.sunlight_samples() > 0)
                     .then(|| guide::SkyGuide::new(&medium, sun_direction))
             },
             control: (options.control_variate == Some(true)).then(|| {
@@ -155,7 +155,7 @@ impl Renderer {
             draft_options: IntegratorOptions {
                 camera_samples: 0,
                 control_variate: Some(false),
-                sky_guide: 0.0,
+                sky_guide: Some(0.0),
                 sunlight_samples: Some(0),
                 shadow_samples: 0,
                 // The Sobol prefix costs ~4 % of a full path and the draft's
