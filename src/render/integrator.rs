@@ -277,7 +277,7 @@ pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
 pub const SKY_GUIDE: f64 = 0.25;
 /// [`IntegratorOptions::sky_guide`] with the sun below the horizon
 /// ([`SPLITTING_ELEVATION_DEG`]): with roulette and splitting on, twilight
-/// (−4°) needs 0.93× the time to equal noise of 0.25 (7 seeds, 0.86–1.05;
+/// (−4°) needs 0.94× the time to equal noise of 0.25 (7 seeds, 0.86–1.05;
 /// 0.4: 0.96×, 0.15: 1.15–1.20×; `BENCHMARKS.md`, session 15).
 pub const SHADOW_SKY_GUIDE: f64 = 0.35;
 
