@@ -30,11 +30,11 @@
 //! `sunlight_samples` is on by default with the sun below [`super::integrator::LOW_SUN_ELEVATION_DEG`],
 //! where its segment estimates, through this guide's cached densities, win
 //! at equal time (`BENCHMARKS.md`, session 8); `sky_guide` draws a quarter
-//! of the directions in the shadow from the table by default (0.35 with
-//! the sun below the horizon) (second-order
-//! light at twilight ~25× cheaper per path; the heavier tails of higher
-//! orders stay, so the whole image gains 1.1–1.35× at equal time,
-//! `BENCHMARKS.md`, "The sky guide" and session 10); `shadow_samples` is off.
+//! of the directions in the shadow from the table by default, 0.35 with the
+//! sun below the horizon (second-order light at twilight ~25× cheaper per
+//! path; the heavier tails of higher orders stay, so the whole image gains
+//! 1.1–1.35× at equal time, `BENCHMARKS.md`, "The sky guide", sessions 10
+//! and 15); `shadow_samples` is off.
 
 use std::sync::OnceLock;
 

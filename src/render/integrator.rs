@@ -51,10 +51,11 @@
 //! the sun, delta tracking wins at equal time.
 //!
 //! **In the planet's shadow** a quarter of the scattering directions
-//! (`sky_guide`; 0.35 with the sun below the horizon) come from the table of incoming once-scattered light
-//! ([`super::guide`]): there the light comes from the sunlit air above the
-//! horizon, which no phase function about a fixed axis finds. With the sun
-//! low, sunlit points are guided too (`sky_guide_sunlit`).
+//! (`sky_guide`; 0.35 with the sun below the horizon) come from the table
+//! of incoming once-scattered light ([`super::guide`]): there the light
+//! comes from the sunlit air above the horizon, which no phase function
+//! about a fixed axis finds. With the sun low, sunlit points are guided
+//! too (`sky_guide_sunlit`).
 //!
 //! **Roulette and splitting by importance** (`splitting`, on with the sun
 //! below the horizon): at a real scattering of a low-sun path, the path's
