@@ -1419,15 +1419,15 @@ impl<'a> Integrator<'a> {
                     && (self.options.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
             })
             .map(|g| g.at(self.medium, x));
-        let guide = at.as_ref().filter(|at| at.guides());
-        let g = if guide.is_some() {
+        let guides = at.as_ref().is_some_and(GuideAt::guides);
+        let g = if guides {
             self.options.sky_guide()
         } else {
             0.0
         };
         let alpha = self.options.sun_lobe();
-        let (new_dir, cell) = match guide {
-            Some(guide) if rng.uniform() < g => {
+        let (new_dir, cell) = match at.as_ref() {
+            Some(guide) if guides && rng.uniform() < g => {
                 let (new_dir, cell) = guide.sample(rng);
                 (new_dir, Some(cell))
             }
@@ -1440,7 +1440,6 @@ impl<'a> Integrator<'a> {
         if let Some(at) = at.as_mut() {
             at.choose(new_dir, cell);
         }
-        let guide = at.as_ref().filter(|at| at.guides());
         let phase = self.phase_mixture_pdf(c, lanes, dir.dot(new_dir));
         let mut pdf = if alpha > 0.0 {
             let lobe = self.phase_mixture_pdf(c, lanes, self.sun_direction.dot(new_dir));
@@ -1448,7 +1447,7 @@ impl<'a> Integrator<'a> {
         } else {
             phase
         };
-        if let Some(guide) = guide {
+        if let Some(guide) = at.as_ref().filter(|_| guides) {
             pdf = (1.0 - g) * pdf + g * guide.pdf(new_dir);
         }
         (new_dir, pdf, at)
