@@ -545,6 +545,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("camera_branches=8", |s| {
             s.render.integrator.camera_branches = 8;
         }),
+        ("camera_importance=0", |s| {
+            s.render.integrator.camera_importance = Some(0.0);
+        }),
         ("sunlight_samples=0", |s| {
             s.render.integrator.sunlight_samples = Some(0);
         }),

@@ -1,5 +1,7 @@
 //! Analytic limits and statistical agreement of the path tracer.
 
+use std::sync::Arc;
+
 use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::sun;
@@ -562,6 +564,51 @@ fn sky_guide_is_unbiased() {
                 );
                 assert_agree(&what, run(options, 10_000), (reference, reference_se));
             }
+        }
+    }
+}
+
+#[test]
+fn camera_importance_is_unbiased() {
+    // Camera branch points drawn partly by the guide's skylight (the
+    // renderer's default with the sun low, `camera_importance`) only shape
+    // the sampling: orders ≤ 2 — whose branches' next-event estimates the
+    // weighting targets — and all orders must match the plain densities',
+    // at twilight (toward the glow, and high up away from it) and at sunset.
+    let atmosphere = Atmosphere::new(AtmosphereParams::default());
+    let medium = Medium::new(&atmosphere);
+    let lanes = unit_sun_lanes(&medium, [440.0, 520.0, 600.0, 680.0]);
+    let origin = DVec3::new(0.0, 0.0, atmosphere.params.planet_radius_m + 2.0);
+    for ((sun_az, sun_el), (az, el)) in [
+        ((270.0, -4.0), (270.0, 8.0)),
+        ((270.0, -4.0), (90.0, 30.0)),
+        ((270.0, 2.0), (250.0, 5.0)),
+    ] {
+        let sun_dir = direction_from_az_el(sun_az, sun_el);
+        let view = direction_from_az_el(az, el);
+        let guide = Arc::new(SkyGuide::new(&medium, sun_dir));
+        let plain = CameraDensities::new(&medium, origin, sun_dir);
+        let skylight = Arc::clone(&guide);
+        let weighted = CameraDensities::new(&medium, origin, sun_dir).with_importance(
+            0.5,
+            Arc::new(move |medium: &Medium, x: DVec3| skylight.skylight(medium, x)),
+        );
+        for order in [Some(2), None] {
+            let options = IntegratorOptions {
+                max_scattering_order: order,
+                ..IntegratorOptions::default().resolved(sun_el)
+            };
+            let run = |camera: &CameraDensities| {
+                let integrator = Integrator::new(&medium, &options, sun_dir)
+                    .with_camera_densities(camera)
+                    .with_sky_guide(&guide);
+                estimate(20_000, |rng| integrator.radiance(origin, view, &lanes, rng))
+            };
+            assert_agree(
+                &format!("sun {sun_el}°, view ({az}, {el}), order {order:?}"),
+                run(&weighted),
+                run(&plain),
+            );
         }
     }
 }

@@ -153,7 +153,7 @@ impl SkyGuide {
                 medium,
                 origin_m,
                 dir,
-                rays.get(d, || self.builder.build(medium, origin_m, dir)),
+                rays.get(d, || self.builder.build(medium, origin_m, dir, None)),
             );
             let mass = light * frame.cell_solid_angle(DIRECTION_GRID, d);
             cdf.push(cdf[d] + if mass.is_finite() { mass } else { 0.0 });
@@ -290,7 +290,9 @@ impl GuideAt<'_> {
         let ray = self.cell_of(dir).and_then(|d| {
             cell.rays.get(d, || {
                 let central = cell.frame.cell_direction(DIRECTION_GRID, d);
-                self.guide.builder.build(medium, cell.origin_m, central)
+                self.guide
+                    .builder
+                    .build(medium, cell.origin_m, central, None)
             })
         });
         CachedRayDensity::new(ray, span)

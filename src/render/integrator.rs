@@ -129,6 +129,14 @@ pub struct IntegratorOptions {
     /// segment's cost is shared by several estimates of the multiply
     /// scattered light, which carries most of the variance.
     pub camera_branches: u32,
+    /// Share of the points camera paths branch from drawn ∝ σ_s T × the
+    /// [`SkyGuide`]'s mean once-scattered radiance at the point (the light a
+    /// branch can expect to find there) instead of σ_s T, 0–1
+    /// ([`CameraDensities::with_importance`]). Unset (the default):
+    /// [`CAMERA_IMPORTANCE`] with the sun lower than
+    /// [`LOW_SUN_ELEVATION_DEG`], else 0 (see [`Self::resolved`]); read by
+    /// the renderer, which builds its camera densities with it.
+    pub camera_importance: Option<f64>,
     /// Next-event points per path segment drawn from the expected-sunlight
     /// density of [`super::sunlight`] (stratified; the path goes on from a
     /// further point drawn from its skylight part), 0–8. 0 = delta tracking
@@ -217,6 +225,7 @@ impl Default for IntegratorOptions {
             next_event_estimation: true,
             camera_samples: 2,
             camera_branches: 4,
+            camera_importance: None,
             sunlight_samples: None,
             sun_lobe: None,
             sky_guide: None,
@@ -242,6 +251,14 @@ impl Default for IntegratorOptions {
 /// low down, most of the sky's light comes from thin sunlit stretches of
 /// long rays that chance collisions rarely hit.
 pub const LOW_SUN_ELEVATION_DEG: f64 = 3.0;
+
+/// [`IntegratorOptions::camera_importance`] with the sun lower than
+/// [`LOW_SUN_ELEVATION_DEG`]. Fixed passes (two 256×128 images of 8
+/// samples per pixel, seeds S and S + 1), noise against 0: at −4°
+/// (S = 1, 3, 5, 7) 0.89× (0.78× the variance), 0.3: 0.96×, 0.65: 0.90×;
+/// at −8° 0.62–0.75×, at −1° 0.96–0.98×, at 0.5° 0.97–0.99×, at 2° 0.98×
+/// over nine seeds; by day (45°) none (`BENCHMARKS.md`, session 16).
+pub const CAMERA_IMPORTANCE: f64 = 0.5;
 
 /// [`IntegratorOptions::sun_lobe`] unless the sun is high or the control
 /// variate is on. The glow about
@@ -294,6 +311,12 @@ impl IntegratorOptions {
         self.sky_guide.unwrap_or(SKY_GUIDE)
     }
 
+    /// Share of camera branch points by importance
+    /// ([`Self::camera_importance`]; unset = 0).
+    pub fn camera_importance(&self) -> f64 {
+        self.camera_importance.unwrap_or(0.0)
+    }
+
     /// Share of directions about the sun's ([`Self::sun_lobe`]; unset =
     /// [`SUN_LOBE`]).
     pub fn sun_lobe(&self) -> f64 {
@@ -311,6 +334,11 @@ impl IntegratorOptions {
         );
         Self {
             sunlight_samples: Some(self.sunlight_samples.unwrap_or(u32::from(low_sun))),
+            camera_importance: Some(self.camera_importance.unwrap_or(if low_sun {
+                CAMERA_IMPORTANCE
+            } else {
+                0.0
+            })),
             sky_guide: Some(self.sky_guide.unwrap_or(
                 if sun_elevation_deg < SPLITTING_ELEVATION_DEG {
                     SHADOW_SKY_GUIDE
@@ -996,6 +1024,7 @@ impl<'a> Integrator<'a> {
             self.sun_direction,
             &phase_rayleigh,
             phase_aerosol,
+            None,
         );
         let n = if distribution.is_some() { n } else { 0 };
         let distribution = distribution.as_ref().map(|d| d as &dyn SegmentDensity);
@@ -1744,13 +1773,19 @@ mod tests {
                 auto.sky_guide_sunlit,
                 auto.splitting,
                 auto.control_variate,
-                auto.sky_guide
+                auto.sky_guide,
+                auto.camera_importance
             ),
-            (None, None, None, None, None, None)
+            (None, None, None, None, None, None, None)
         );
         assert_eq!(
-            (auto.sunlight_samples(), auto.sun_lobe(), auto.sky_guide()),
-            (0, SUN_LOBE, SKY_GUIDE)
+            (
+                auto.sunlight_samples(),
+                auto.sun_lobe(),
+                auto.sky_guide(),
+                auto.camera_importance()
+            ),
+            (0, SUN_LOBE, SKY_GUIDE, 0.0)
         );
         for (elevation_deg, samples, lobe, splitting, control) in [
             (-4.0, 1, SUN_LOBE, true, false),
@@ -1771,7 +1806,8 @@ mod tests {
                     resolved.sky_guide_sunlit,
                     resolved.splitting,
                     resolved.control_variate,
-                    resolved.sky_guide
+                    resolved.sky_guide,
+                    resolved.camera_importance
                 ),
                 (
                     Some(samples),
@@ -1783,7 +1819,8 @@ mod tests {
                         SHADOW_SKY_GUIDE
                     } else {
                         SKY_GUIDE
-                    })
+                    }),
+                    Some(if samples == 1 { CAMERA_IMPORTANCE } else { 0.0 })
                 ),
                 "{elevation_deg}°"
             );
@@ -1795,6 +1832,7 @@ mod tests {
                     splitting: None,
                     control_variate: None,
                     sky_guide: None,
+                    camera_importance: None,
                     ..resolved
                 },
                 auto
@@ -1808,6 +1846,7 @@ mod tests {
                 sky_guide_sunlit: Some(sunlit),
                 splitting: Some(splitting),
                 control_variate: Some(!splitting),
+                camera_importance: Some(lobe),
                 ..IntegratorOptions::default()
             };
             assert_eq!(options.resolved(-4.0), options);

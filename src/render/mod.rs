@@ -19,6 +19,7 @@ pub mod sunlight;
 pub mod trig;
 
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::Arc;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -82,8 +83,9 @@ pub struct Renderer {
     /// Incoming once-scattered light by direction at scattering points,
     /// built per (altitude, solar zenith) cell on first use; only for the
     /// options that use it (`sky_guide`, `shadow_samples`,
-    /// `sunlight_samples`), so the default render does not set it up.
-    sky_guide: Option<guide::SkyGuide>,
+    /// `sunlight_samples`, `camera_importance`); shared with the camera
+    /// densities, which read its skylight as their importance.
+    sky_guide: Option<Arc<guide::SkyGuide>>,
     /// The once-scattered light's table for the control variate, where the
     /// scene's options turn it on (`control_variate`).
     control: Option<control::RadianceTable>,
@@ -136,13 +138,28 @@ impl Renderer {
         );
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
         let options = scene.render.integrator.resolved(scene.sun.elevation_deg);
+        let sky_guide = {
+            let i = &options;
+            let importance = i.camera_samples > 0 && i.camera_importance() > 0.0;
+            (i.sky_guide() > 0.0 || i.shadow_samples > 0 || i.sunlight_samples() > 0 || importance)
+                .then(|| Arc::new(guide::SkyGuide::new(&medium, sun_direction)))
+        };
+        let camera_densities = CameraDensities::new(&medium, observer_m, sun_direction);
+        // Camera branches drawn partly by the light the guide expects them
+        // to find ([`IntegratorOptions::camera_importance`]).
+        let camera_densities = match &sky_guide {
+            Some(guide) if options.camera_importance() > 0.0 => {
+                let guide = Arc::clone(guide);
+                camera_densities.with_importance(
+                    options.camera_importance(),
+                    Arc::new(move |medium: &Medium, x: DVec3| guide.skylight(medium, x)),
+                )
+            }
+            _ => camera_densities,
+        };
         Ok(Self {
-            camera_densities: CameraDensities::new(&medium, observer_m, sun_direction),
-            sky_guide: {
-                let i = &options;
-                (i.sky_guide() > 0.0 || i.shadow_samples > 0 || i.sunlight_samples() > 0)
-                    .then(|| guide::SkyGuide::new(&medium, sun_direction))
-            },
+            camera_densities,
+            sky_guide,
             control: (options.control_variate == Some(true)).then(|| {
                 control::RadianceTable::new(
                     medium.planet_radius_m,

@@ -20,8 +20,19 @@
 //! positive wherever the air scatters (the skylight component), so the
 //! estimator stays unbiased whatever the table's error (Earth's penumbra,
 //! refraction-free geometry, interpolation).
+//!
+//! **Camera branches by importance.** The skylight component places the
+//! points camera paths branch from. ∝ σ_s T it follows where light scatters
+//! toward the camera, not how much light a path going on from there finds:
+//! at twilight a point high in the shadow, near the sunlit air, sees 10–20×
+//! the once-scattered light of one near the ground, and branches from the
+//! 4.6 % of points above 12 km carried half the variance of one bright view
+//! (`BENCHMARKS.md`, session 16). With [`CameraDensities::with_importance`]
+//! a share of the component is drawn ∝ σ_s T × an importance of the point
+//! (the renderer's: the sky guide's mean once-scattered radiance,
+//! [`super::guide::SkyGuide::skylight`]).
 
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
 
@@ -140,6 +151,18 @@ const SEGMENT_LENGTH_M: f64 = 150_000.0;
 /// it guarantees unbiasedness and serves the multiple-scattering continuation.
 const SKYLIGHT_SHARE: f64 = 0.3;
 
+/// How much light a path going on from a point is expected to find there, up
+/// to a constant (≥ 0; see [`CameraDensities::with_importance`]).
+pub type Importance = Arc<dyn Fn(&Medium, DVec3) -> f64 + Send + Sync>;
+
+/// A share (0–1) of a density's skylight component drawn ∝ σ_s T × an
+/// importance of the point instead of σ_s T.
+#[derive(Clone, Copy)]
+pub struct Weighting<'a> {
+    pub share: f64,
+    pub importance: &'a dyn Fn(DVec3) -> f64,
+}
+
 /// A piecewise-constant density of distances along one camera ray.
 pub struct InScatterDistribution {
     /// The n + 1 segment boundaries (m along the ray), then the cumulative
@@ -174,12 +197,15 @@ impl InScatterDistribution {
         sun_direction: DVec3,
         phase_rayleigh: &Lanes,
         phase_aerosol: f64,
+        weighting: Option<Weighting<'_>>,
     ) -> Option<Self> {
         let active = lanes.active;
         let mut t = [0.0; MAX_SEGMENTS + 1];
-        // Per segment: sunlight mass per lane, skylight mass per lane.
+        // Per segment: sunlight mass per lane, skylight mass per lane, and
+        // the importance at its midpoint.
         let mut sunlit = [[0.0; LANES]; MAX_SEGMENTS];
         let mut skylit = [[0.0; LANES]; MAX_SEGMENTS];
+        let mut importance = [0.0; MAX_SEGMENTS];
         let mut n = 0;
         let mut view_depth = [0.0; LANES];
         t[0] = span.t_enter;
@@ -213,6 +239,10 @@ impl InScatterDistribution {
                 let x = origin + dir * (0.5 * (a + b));
                 let c = medium.coefficients(x.length(), lanes);
                 let columns = sun.and_then(|table| table.at(x, sun_direction));
+                if let Some(w) = weighting {
+                    let i = (w.importance)(x);
+                    importance[n] = if i.is_finite() { i.max(0.0) } else { 0.0 };
+                }
                 for j in 0..active {
                     let half = 0.5 * c.extinction(j) * (b - a);
                     let view = view_depth[j] + half;
@@ -242,6 +272,23 @@ impl InScatterDistribution {
                 sky_total[j] += skylit[s][j];
             }
         }
+        // The weighted part only where every lane's weighted total is
+        // usable (positive, finite); else the plain component alone.
+        let mut weighted_total = [0.0; LANES];
+        for s in 0..n {
+            for j in 0..active {
+                weighted_total[j] += skylit[s][j] * importance[s];
+            }
+        }
+        let weighted_share = weighting.map_or(0.0, |w| w.share.clamp(0.0, 1.0));
+        let weighted_share = if (0..active)
+            .filter(|&j| sky_total[j] > 0.0)
+            .all(|j| weighted_total[j] > 0.0 && weighted_total[j].is_finite())
+        {
+            weighted_share
+        } else {
+            0.0
+        };
         let sun_lanes = (0..active).filter(|&j| sun_total[j] > 0.0).count();
         let sky_lanes = (0..active).filter(|&j| sky_total[j] > 0.0).count();
         if sky_lanes == 0 {
@@ -262,7 +309,14 @@ impl InScatterDistribution {
                     sun_mass += sunlit[s][j] / sun_total[j] / sun_lanes as f64;
                 }
                 if sky_total[j] > 0.0 {
-                    sky_mass += skylit[s][j] / sky_total[j] / sky_lanes as f64;
+                    let plain = skylit[s][j] / sky_total[j];
+                    let weighted = if weighted_share > 0.0 {
+                        skylit[s][j] * importance[s] / weighted_total[j]
+                    } else {
+                        0.0
+                    };
+                    sky_mass += ((1.0 - weighted_share) * plain + weighted_share * weighted)
+                        / sky_lanes as f64;
                 }
             }
             cdf[s + 1] = cdf[s] + sun_share * sun_mass + (1.0 - sun_share) * sky_mass;
@@ -375,7 +429,8 @@ impl InScatterDistribution {
 /// Which density of an [`InScatterDistribution`]: the whole mixture (for
 /// next-event points: single scattering follows the sunlight) or its
 /// skylight part alone (∝ σ_s T, for the point a path goes on from: multiple
-/// scattering follows the air the skylight reaches).
+/// scattering follows the air the skylight reaches; partly ∝ σ_s T × an
+/// importance where one is given, [`Weighting`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Component {
     Mixture,
@@ -409,6 +464,9 @@ pub struct CameraDensities {
     frame: ViewFrame,
     builder: DensityBuilder,
     cells: DensitySlots,
+    /// The share of the skylight component drawn by importance, and the
+    /// importance ([`Self::with_importance`]).
+    importance: Option<(f64, Importance)>,
 }
 
 impl CameraDensities {
@@ -424,7 +482,19 @@ impl CameraDensities {
             ),
             builder: DensityBuilder::new(medium, sun_direction),
             cells: DensitySlots::new(CAMERA_GRID.cells()),
+            importance: None,
         }
+    }
+
+    /// This cache with `share` (0–1) of every density's skylight component —
+    /// where camera paths branch — drawn ∝ σ_s T × `importance` instead of
+    /// σ_s T (see the module's docs). The importance must be a fixed
+    /// function (building stays deterministic); where it is zero along a
+    /// whole ray, that ray's density keeps the plain component.
+    #[must_use]
+    pub fn with_importance(mut self, share: f64, importance: Importance) -> Self {
+        self.importance = Some((share, importance));
+        self
     }
 
     /// The observer's position, m, planet-centred.
@@ -442,7 +512,18 @@ impl CameraDensities {
         let cell = self.frame.cell_index(CAMERA_GRID, dir).and_then(|i| {
             self.cells.get(i, || {
                 let central = self.frame.cell_direction(CAMERA_GRID, i);
-                self.builder.build(medium, self.origin_m, central)
+                match &self.importance {
+                    Some((share, importance)) => {
+                        let importance = |x: DVec3| importance(medium, x);
+                        let weighting = Weighting {
+                            share: *share,
+                            importance: &importance,
+                        };
+                        self.builder
+                            .build(medium, self.origin_m, central, Some(weighting))
+                    }
+                    None => self.builder.build(medium, self.origin_m, central, None),
+                }
             })
         });
         CachedRayDensity::new(cell, span)
@@ -464,12 +545,14 @@ impl DensityBuilder {
         }
     }
 
-    /// The density of the ray `origin_m + t·dir` over its whole span.
+    /// The density of the ray `origin_m + t·dir` over its whole span, its
+    /// skylight component weighted by `weighting` if given.
     pub fn build(
         &self,
         medium: &Medium,
         origin_m: DVec3,
         dir: DVec3,
+        weighting: Option<Weighting<'_>>,
     ) -> Option<InScatterDistribution> {
         let span = medium.span(origin_m, dir)?;
         let mu_sun = dir.dot(self.sun_direction);
@@ -487,6 +570,7 @@ impl DensityBuilder {
             self.sun_direction,
             &phase_rayleigh,
             phase_aerosol,
+            weighting,
         )
     }
 
@@ -676,6 +760,7 @@ mod tests {
             DVec3::new(0.0, 0.6, 0.8),
             &[0.06; LANES],
             0.1,
+            None,
         )
         .unwrap();
         // Importance-sampling identity E[f(t)/p(t)] = ∫ f dt, for f the
@@ -687,6 +772,68 @@ mod tests {
         });
         let ratio = estimate / reference;
         assert!((ratio - 1.0).abs() < 1e-3, "{estimate} vs {reference}");
+    }
+
+    #[test]
+    fn weighted_camera_densities_follow_their_density_and_the_importance() {
+        // With half the skylight component drawn ∝ σ_s T × an importance,
+        // points and densities must still agree (E[f/p] = ∫ f for both
+        // components), and the component must move toward the important
+        // points: the importance here grows with altitude, so the points'
+        // mean altitude rises. Sun 4° below the horizon.
+        let atmosphere = Atmosphere::new(AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        let sun = DVec3::new(0.0, 0.997_564, -0.069_756);
+        let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2.0);
+        let altitude_km = |medium: &Medium, x: DVec3| (x.length() - medium.planet_radius_m) / 1e3;
+        let plain = CameraDensities::new(&medium, origin, sun);
+        let weighted = CameraDensities::new(&medium, origin, sun).with_importance(
+            0.5,
+            Arc::new(move |medium: &Medium, x: DVec3| altitude_km(medium, x).max(0.0)),
+        );
+        let zero = CameraDensities::new(&medium, origin, sun)
+            .with_importance(0.5, Arc::new(|_: &Medium, _: DVec3| 0.0));
+        for dir in [DVec3::new(0.3, 0.95, 0.05), DVec3::new(-0.6, 0.1, 0.3)] {
+            let dir = dir.normalize();
+            let span = medium.span(origin, dir).unwrap();
+            let mean_altitude_km = |cache: &CameraDensities| {
+                let d = cache.density(&medium, dir, span);
+                let n = 10_000;
+                (0..n)
+                    .map(|i| {
+                        let u = (f64::from(i) + 0.5) / f64::from(n);
+                        altitude_km(&medium, origin + dir * d.sample(Component::Skylight, u).0)
+                    })
+                    .sum::<f64>()
+                    / f64::from(n)
+            };
+            for component in [Component::Mixture, Component::Skylight] {
+                let d = weighted.density(&medium, dir, span);
+                let (estimate, reference) = importance_identity(&medium, origin, dir, span, |u| {
+                    let (t, p) = d.sample(component, u);
+                    assert!((p / d.density_at(component, t) - 1.0).abs() < 1e-9);
+                    (t, p)
+                });
+                let ratio = estimate / reference;
+                assert!(
+                    (ratio - 1.0).abs() < 2e-3,
+                    "{dir} {component:?}: {estimate} vs {reference}"
+                );
+            }
+            let (before, after) = (mean_altitude_km(&plain), mean_altitude_km(&weighted));
+            assert!(after > 1.2 * before, "{dir}: {before} km → {after} km");
+            // Zero importance along the whole ray: the plain component.
+            let (a, b) = (
+                zero.density(&medium, dir, span),
+                plain.density(&medium, dir, span),
+            );
+            for u in [0.1, 0.5, 0.9] {
+                assert_eq!(
+                    a.sample(Component::Skylight, u),
+                    b.sample(Component::Skylight, u)
+                );
+            }
+        }
     }
 
     #[test]
