@@ -24,8 +24,8 @@
 //! **Camera branches by importance.** The skylight component places the
 //! points camera paths branch from. ∝ σ_s T it follows where light scatters
 //! toward the camera, not how much light a path going on from there finds:
-//! at twilight a point high in the shadow, near the sunlit air, sees 10–20×
-//! the once-scattered light of one near the ground, and branches from the
+//! at twilight a branch from high in the shadow, near the sunlit air, found
+//! 5–8× the light of one from near the ground, and the branches from the
 //! 4.6 % of points above 12 km carried half the variance of one bright view
 //! (`BENCHMARKS.md`, session 16). With [`CameraDensities::with_importance`]
 //! a share of the component is drawn ∝ σ_s T × an importance of the point
