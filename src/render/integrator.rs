@@ -255,9 +255,10 @@ pub const LOW_SUN_ELEVATION_DEG: f64 = 3.0;
 /// [`IntegratorOptions::camera_importance`] with the sun lower than
 /// [`LOW_SUN_ELEVATION_DEG`]. Fixed passes (two 256×128 images of 8
 /// samples per pixel, seeds S and S + 1), noise against 0: at −4°
-/// (S = 1, 3, 5, 7) 0.89× (0.78× the variance), 0.3: 0.96×, 0.65: 0.90×;
-/// at −8° 0.62–0.75×, at −1° 0.96–0.98×, at 0.5° 0.97–0.99×, at 2° 0.98×
-/// over nine seeds; by day (45°) none (`BENCHMARKS.md`, session 16).
+/// (S = 1, 3, 5, 7) 0.88× (0.78× the variance), 0.3: 0.97×, 0.65: 0.89×;
+/// at −8° 0.62–0.75×, at −1° 0.95–0.98×, at 0.5° 0.97–0.99×, at 2° 1.00×
+/// over nine seeds (0.97–1.11); by day (45°) none; in the bench at −4° 0.83×
+/// the time to equal noise, at 2° even (`BENCHMARKS.md`, session 16).
 pub const CAMERA_IMPORTANCE: f64 = 0.5;
 
 /// [`IntegratorOptions::sun_lobe`] unless the sun is high or the control
