@@ -471,6 +471,27 @@ impl Renderer {
 mod tests {
     use super::*;
 
+    #[test]
+    fn camera_branches_follow_the_guides_importance_with_the_sun_low() {
+        // Below 3° the renderer builds its camera densities with the guide's
+        // skylight as importance (`camera_importance`), so their skylight
+        // component — where camera paths branch — differs from the plain
+        // one; by day it is the plain one.
+        for (preset, weighted) in [("twilight", true), ("sunset", true), ("midday", false)] {
+            let r = Renderer::new(&Scene::preset(preset).unwrap()).unwrap();
+            let plain = CameraDensities::new(&r.medium, r.observer_m, r.sun_direction);
+            let dir = direction_from_az_el(r.scene.sun.azimuth_deg, 10.0);
+            let span = r.medium.span(r.observer_m, dir).unwrap();
+            let own = r.camera_densities.density(&r.medium, dir, span);
+            let plain = plain.density(&r.medium, dir, span);
+            let differs = [0.25, 0.5, 0.75].iter().any(|&u| {
+                own.sample(sunlight::Component::Skylight, u)
+                    != plain.sample(sunlight::Component::Skylight, u)
+            });
+            assert_eq!(differs, weighted, "{preset}");
+        }
+    }
+
     /// The sunset preset at 24×12, with adaptive sampling on or off.
     fn small_sunset(adaptive_sampling: bool) -> Renderer {
         let mut scene = Scene::preset("sunset").unwrap();
