@@ -138,20 +138,25 @@ impl Renderer {
         );
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
         let options = scene.render.integrator.resolved(scene.sun.elevation_deg);
+        // Camera branches drawn partly by the light the guide expects them
+        // to find ([`IntegratorOptions::camera_importance`]), where camera
+        // rays use their densities at all.
+        let camera_importance = Some(options.camera_importance())
+            .filter(|&share| share > 0.0 && options.camera_samples > 0);
         let sky_guide = {
             let i = &options;
-            let importance = i.camera_samples > 0 && i.camera_importance() > 0.0;
-            (i.sky_guide() > 0.0 || i.shadow_samples > 0 || i.sunlight_samples() > 0 || importance)
-                .then(|| Arc::new(guide::SkyGuide::new(&medium, sun_direction)))
+            (i.sky_guide() > 0.0
+                || i.shadow_samples > 0
+                || i.sunlight_samples() > 0
+                || camera_importance.is_some())
+            .then(|| Arc::new(guide::SkyGuide::new(&medium, sun_direction)))
         };
         let camera_densities = CameraDensities::new(&medium, observer_m, sun_direction);
-        // Camera branches drawn partly by the light the guide expects them
-        // to find ([`IntegratorOptions::camera_importance`]).
-        let camera_densities = match &sky_guide {
-            Some(guide) if options.camera_importance() > 0.0 => {
+        let camera_densities = match (&sky_guide, camera_importance) {
+            (Some(guide), Some(share)) => {
                 let guide = Arc::clone(guide);
                 camera_densities.with_importance(
-                    options.camera_importance(),
+                    share,
                     Arc::new(move |medium: &Medium, x: DVec3| guide.skylight(medium, x)),
                 )
             }

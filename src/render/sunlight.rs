@@ -160,7 +160,7 @@ pub type Importance = Arc<dyn Fn(&Medium, DVec3) -> f64 + Send + Sync>;
 #[derive(Clone, Copy)]
 pub struct Weighting<'a> {
     pub share: f64,
-    pub importance: &'a dyn Fn(DVec3) -> f64,
+    pub importance: &'a dyn Fn(&Medium, DVec3) -> f64,
 }
 
 /// A piecewise-constant density of distances along one camera ray.
@@ -240,7 +240,7 @@ impl InScatterDistribution {
                 let c = medium.coefficients(x.length(), lanes);
                 let columns = sun.and_then(|table| table.at(x, sun_direction));
                 if let Some(w) = weighting {
-                    let i = (w.importance)(x);
+                    let i = (w.importance)(medium, x);
                     importance[n] = if i.is_finite() { i.max(0.0) } else { 0.0 };
                 }
                 for j in 0..active {
@@ -275,20 +275,20 @@ impl InScatterDistribution {
         // The weighted part only where every lane's weighted total is
         // usable (positive, finite); else the plain component alone.
         let mut weighted_total = [0.0; LANES];
-        for s in 0..n {
-            for j in 0..active {
-                weighted_total[j] += skylit[s][j] * importance[s];
+        let mut weighted_share = weighting.map_or(0.0, |w| w.share.clamp(0.0, 1.0));
+        if weighted_share > 0.0 {
+            for s in 0..n {
+                for j in 0..active {
+                    weighted_total[j] += skylit[s][j] * importance[s];
+                }
+            }
+            if !(0..active)
+                .filter(|&j| sky_total[j] > 0.0)
+                .all(|j| weighted_total[j] > 0.0 && weighted_total[j].is_finite())
+            {
+                weighted_share = 0.0;
             }
         }
-        let weighted_share = weighting.map_or(0.0, |w| w.share.clamp(0.0, 1.0));
-        let weighted_share = if (0..active)
-            .filter(|&j| sky_total[j] > 0.0)
-            .all(|j| weighted_total[j] > 0.0 && weighted_total[j].is_finite())
-        {
-            weighted_share
-        } else {
-            0.0
-        };
         let sun_lanes = (0..active).filter(|&j| sun_total[j] > 0.0).count();
         let sky_lanes = (0..active).filter(|&j| sky_total[j] > 0.0).count();
         if sky_lanes == 0 {
@@ -512,18 +512,15 @@ impl CameraDensities {
         let cell = self.frame.cell_index(CAMERA_GRID, dir).and_then(|i| {
             self.cells.get(i, || {
                 let central = self.frame.cell_direction(CAMERA_GRID, i);
-                match &self.importance {
-                    Some((share, importance)) => {
-                        let importance = |x: DVec3| importance(medium, x);
-                        let weighting = Weighting {
-                            share: *share,
-                            importance: &importance,
-                        };
-                        self.builder
-                            .build(medium, self.origin_m, central, Some(weighting))
-                    }
-                    None => self.builder.build(medium, self.origin_m, central, None),
-                }
+                let weighting = self
+                    .importance
+                    .as_ref()
+                    .map(|(share, importance)| Weighting {
+                        share: *share,
+                        importance: importance.as_ref(),
+                    });
+                self.builder
+                    .build(medium, self.origin_m, central, weighting)
             })
         });
         CachedRayDensity::new(cell, span)
