@@ -338,8 +338,12 @@ fn slider_change_latency_at_the_default_preview_size() {
             ms(latencies[latencies.len() - 1]),
         );
     }
-    let latencies = first;
-    assert!(latencies[latencies.len() / 2] < Duration::from_secs(10));
+    // A regression guard, not the benchmark (`skyrender bench` measures the
+    // first frame: 37–58 ms in release): run alone in the test profile the
+    // medians read 45 ms (first frame) and 114 ms (full size); the bounds
+    // leave room for the other tests sharing CI's two cores.
+    assert!(first[first.len() / 2] < Duration::from_secs(1));
+    assert!(full[full.len() / 2] < Duration::from_secs(2));
 }
 
 #[test]

@@ -47,7 +47,7 @@ fn rayleigh_slope_is_close_to_lambda_minus_four() {
 
 #[test]
 fn rayleigh_cross_sections_agree_with_bodhaine_1999() {
-    // An independent formulation (data/rayleigh_bodhaine1999_colour.csv, 360 ppm
+    // An independent formulation (data/rayleigh_bodhaine1999_colour.csv, 300 ppm
     // CO₂, different n_s): agreement within 1.5 % from 300 to 1000 nm.
     let table = Table::parse(include_str!("../data/rayleigh_bodhaine1999_colour.csv"));
     for row in &table.rows {

@@ -58,9 +58,9 @@ fn every_preset_renders_finite_pixels_non_negative_without_the_control_variate()
         if signed {
             // The control variate's single estimates may be negative (their
             // mean is not), and so, rarely, may a pixel of one full sample
-            // (sunset, 64×32 at 2 spp, seeds 0–3: 24 of 8192 pixels; at
-            // 4 spp 1; at 16 none).
-            assert!(negative * 20 <= luminance.len(), "{name}: {negative}");
+            // (sunset, 64×32 at 2 spp, seeds 0–3: 24 of 8192 pixels, 0.3 %;
+            // at 4 spp 1; at 16 none): at most 2 of these 128.
+            assert!(negative * 50 <= luminance.len(), "{name}: {negative}");
         } else {
             assert_eq!(negative, 0, "{name}");
         }
@@ -95,7 +95,9 @@ fn midday_zenith_is_blue_and_bright() {
     let zenith = band_mean(&pixels, w, h, (60.0, 90.0));
     assert!(zenith[2] > zenith[0] * 1.3, "zenith {zenith:?}");
     let y = 0.2126 * zenith[0] + 0.7152 * zenith[1] + 0.0722 * zenith[2];
-    // A clear midday sky is several thousand cd/m².
+    // A clear midday sky is several thousand cd/m² (a plausibility check:
+    // the luminance itself is checked against the spectral radiance in
+    // `midday_zenith_luminance_is_683_times_the_radiance_under_y_bar`).
     assert!((1_000.0..20_000.0).contains(&y), "{y}");
 }
 
@@ -133,11 +135,24 @@ fn twilight_is_dark_but_its_zenith_stays_blue() {
     let pixels = render(&small("twilight", w, h, 16), 2);
     let zenith = band_mean(&pixels, w, h, (60.0, 90.0));
     let day = band_mean(&render(&small("midday", w, h, 4), 2), w, h, (60.0, 90.0));
+    // Sun 4° down: the zenith is some thousand times darker than at midday
+    // (measured here: 4.8 against 5250 cd/m² over 60–90° elevation).
     assert!(
-        zenith[1] < day[1] / 20.0,
+        zenith[1] < day[1] / 200.0,
         "twilight {zenith:?} vs day {day:?}"
     );
-    assert!(zenith[2] > zenith[0], "ozone-blue zenith: {zenith:?}");
+    assert!(zenith[2] > zenith[0], "blue zenith: {zenith:?}");
+    // The blue is ozone's: the Chappuis band takes the sunlight's red on its
+    // long, grazing path (E. O. Hulburt, J. Opt. Soc. Am. 43, 113, 1953).
+    // Without ozone the twilight zenith loses that blue (measured here: B/R
+    // 3.7 with ozone, 1.0 without).
+    let mut no_ozone = small("twilight", w, h, 16);
+    no_ozone.atmosphere.ozone = false;
+    let without = band_mean(&render(&no_ozone, 2), w, h, (60.0, 90.0));
+    assert!(
+        zenith[2] / zenith[0] > 2.0 * (without[2] / without[0]),
+        "B/R with ozone {zenith:?} vs without {without:?}"
+    );
 }
 
 #[test]
@@ -238,5 +253,59 @@ fn assert_same_sky(a: &Scene, b: &Scene) {
     assert!(
         se < 0.01 * sky_mean,
         "SE {se} too large to detect a bias (sky {sky_mean})"
+    );
+}
+
+#[test]
+fn midday_zenith_luminance_is_683_times_the_radiance_under_y_bar() {
+    // The image pipeline end to end — the sampled wavelengths and their
+    // density, the colour-matching functions, K_m = 683 lm/W and the
+    // XYZ → Rec.709 matrix — against the luminance of the spectral radiance
+    // probe at the zenith, L_v = 683 ∫ L(λ) ȳ(λ) dλ (trapezoid rule on the
+    // colour-matching table's grid). Both are unbiased estimates of the
+    // same number, from independent paths.
+    use skyrender::scene::CameraKind;
+    use skyrender::spectrum::{ColourMatching, K_M};
+    let mut scene = small("midday", 8, 8, 96);
+    scene.camera.kind = CameraKind::Perspective;
+    scene.camera.pitch_deg = 90.0;
+    scene.camera.fov_deg = 2.0;
+    scene.render.adaptive_sampling = false;
+    let pixels = render(&scene, 2);
+    let luminance: Vec<f64> = pixels
+        .iter()
+        .map(|p| 0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2]))
+        .collect();
+    let n = luminance.len() as f64;
+    let image = luminance.iter().sum::<f64>() / n;
+    let spread = luminance.iter().map(|y| (y - image).powi(2)).sum::<f64>() / (n - 1.0);
+    let image_se = (spread / n).sqrt();
+
+    let cmf = ColourMatching::get(scene.render.observer);
+    let grid = std::cell::RefCell::new(Vec::new());
+    cmf.integrate(|nm| {
+        grid.borrow_mut().push(nm);
+        0.0
+    });
+    let grid = grid.into_inner();
+    let renderer = Renderer::new(&scene).unwrap();
+    let probe = renderer.probe_radiance(0.0, 0.0, &grid, 4_000);
+    let at = |nm: f64, f: &dyn Fn(&skyrender::render::SpectralEstimate) -> f64| {
+        probe.iter().find(|e| e.wavelength_nm == nm).map_or(0.0, f)
+    };
+    let probed = K_M * cmf.integrate(|nm| at(nm, &|e| e.radiance))[1];
+    // Neighbouring wavelengths share paths: their errors add, not in
+    // quadrature (an upper bound).
+    let probed_se = K_M * cmf.integrate(|nm| at(nm, &|e| e.std_error))[1];
+    let combined = image_se.hypot(probed_se);
+    // Measured: 4310.8 ± 12.4 against 4310.0 ± 11.9 cd/m² (0.4 % combined).
+    assert!(
+        combined < 0.01 * probed,
+        "too noisy to see a 4 % error: {image} ± {image_se} vs {probed} ± {probed_se}"
+    );
+    // 0.2 % for the trapezoid rule against the image's continuous sampling.
+    assert!(
+        (image - probed).abs() < 4.0 * combined + 0.002 * probed,
+        "zenith luminance: image {image} ± {image_se} cd/m² vs probe {probed} ± {probed_se}"
     );
 }

@@ -1613,7 +1613,7 @@ mod tests {
 
     #[test]
     fn transmittance_estimators_agree_with_beer_lambert() {
-        // Vertical transmittance from the ground at 500 nm: exp(−τ) with τ the
+        // Slant transmittance (zenith angle 37°) from the ground at 500 nm: exp(−τ) with τ the
         // integrated optical depth; each estimator's mean within 4 standard errors.
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
@@ -1641,10 +1641,10 @@ mod tests {
                 .sqrt()
                 .max(1e-6);
             let d = atmosphere.vertical_optical_depth(0.0, 500.0);
-            // Slant path: spherical air mass at 53° from zenith ≈ 1/cos.
+            // Slant path 37° from the zenith (53° elevation): air mass ≈ 1/cos.
             let tau = (d.rayleigh + d.ozone + d.aerosol) / 0.8;
             let expected = (-tau).exp();
-            // The plane-parallel air mass is good to ~0.2 % at 37° elevation.
+            // The plane-parallel air mass is good to ~0.2 % at 53° elevation.
             assert!(
                 (mean - expected).abs() < 4.0 * se + 0.003 * expected,
                 "{estimator:?}: {mean} vs {expected} ± {se}"
