@@ -1613,8 +1613,9 @@ mod tests {
 
     #[test]
     fn transmittance_estimators_agree_with_beer_lambert() {
-        // Slant transmittance (zenith angle 37°) from the ground at 500 nm: exp(−τ) with τ the
-        // integrated optical depth; each estimator's mean within 4 standard errors.
+        // Slant transmittance (37° from the zenith) from the ground at 500 nm:
+        // exp(−τ) with τ the integrated optical depth; each estimator's mean
+        // within 4 standard errors.
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
         let lanes = SpectralLanes::new([500.0, 400.0, 600.0, 700.0], 4, &medium, false);
