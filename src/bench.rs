@@ -605,6 +605,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("adaptive_sampling=false", |s| {
             s.render.adaptive_sampling = false;
         }),
+        ("mirror_symmetry=false", |s| {
+            s.render.mirror_symmetry = false;
+        }),
     ]
 }
 

@@ -142,6 +142,10 @@ pub struct SceneArgs {
     /// One sample per pixel per pass everywhere (no adaptive sampling).
     #[arg(long)]
     pub no_adaptive: bool,
+    /// Read every pixel on its own, not with its mirror image in the sun's
+    /// vertical plane (see `[render] mirror_symmetry`).
+    #[arg(long)]
+    pub no_mirror: bool,
     #[arg(long, value_name = "S")]
     pub seed: Option<u64>,
     #[arg(long)]
@@ -236,6 +240,9 @@ impl SceneArgs {
         }
         if self.no_adaptive {
             scene.render.adaptive_sampling = false;
+        }
+        if self.no_mirror {
+            scene.render.mirror_symmetry = false;
         }
         if self.no_aerosols {
             scene.atmosphere.aerosols = false;

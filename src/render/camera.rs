@@ -16,6 +16,7 @@
 
 use glam::DVec3;
 
+use super::film::{Mirror, MirrorAxis};
 use crate::scene::{CameraKind, CameraParams};
 
 /// Unit direction for an azimuth (clockwise from north) and elevation, degrees.
@@ -33,6 +34,8 @@ pub struct Camera {
     tan_half_fov: f64,
     half_fov_rad: f64,
     yaw_rad: f64,
+    yaw_deg: f64,
+    roll_deg: f64,
     /// Columns: right, up, forward (world from camera).
     right: DVec3,
     up: DVec3,
@@ -57,6 +60,8 @@ impl Camera {
             tan_half_fov: half.min(89.5f64.to_radians()).tan(),
             half_fov_rad: half,
             yaw_rad: params.yaw_deg.to_radians(),
+            yaw_deg: params.yaw_deg,
+            roll_deg: params.roll_deg,
             right,
             up,
             forward,
@@ -91,6 +96,52 @@ impl Camera {
                 ))
             }
         }
+    }
+
+    /// The reflection of the image that the reflection of directions in the
+    /// vertical plane of azimuth `sun_azimuth_deg` becomes, where it takes
+    /// every pixel onto a pixel ([`Mirror`]); `None` where it does not.
+    ///
+    /// * Equirect: azimuth φ ↦ 2φ☉ − φ is column position u ↦ 2u☉ − u (mod
+    ///   1), a pixel map where 2u☉ × width is a whole number (the sun's
+    ///   azimuth on a pixel's edge or centre).
+    /// * Perspective: with the view centre in the plane (yaw ≡ φ☉ mod 180°)
+    ///   the plane holds `forward` and `up` before the roll and flips
+    ///   `right`; a roll of 0° or 180° keeps that a flip of columns, 90° or
+    ///   270° makes it one of rows.
+    /// * Fisheye: the image's azimuths θ = φ − yaw map to 2(φ☉ − yaw) − θ, a
+    ///   flip of columns where φ☉ − yaw ≡ 0 (mod 180°), of rows where ≡ 90°.
+    pub fn mirror(&self, sun_azimuth_deg: f64) -> Option<Mirror> {
+        let (width, height) = (self.width as u32, self.height as u32);
+        // Within 1e-9 of a whole number: the reflected directions then
+        // differ from the reflected pixels' by ~1e-11 rad, far below noise.
+        let whole = |v: f64| Some(v.round()).filter(|r| (v - r).abs() < 1e-9);
+        let quarter_turns = |deg: f64| whole(deg / 90.0).map(|q| q.rem_euclid(4.0) as u32);
+        let flip = |axis| Some(Mirror { axis, centre: 0 });
+        match self.kind {
+            CameraKind::Equirect => {
+                let u = (sun_azimuth_deg / 360.0 + 0.5).rem_euclid(1.0);
+                let c = whole(2.0 * u * self.width)?;
+                Some(Mirror {
+                    axis: MirrorAxis::Columns,
+                    centre: (c as u32) % width,
+                })
+            }
+            CameraKind::Perspective => {
+                if quarter_turns(self.yaw_deg - sun_azimuth_deg)? % 2 != 0 {
+                    return None;
+                }
+                match quarter_turns(self.roll_deg)? % 2 {
+                    0 => flip(MirrorAxis::Columns),
+                    _ => flip(MirrorAxis::Rows),
+                }
+            }
+            CameraKind::Fisheye => match quarter_turns(sun_azimuth_deg - self.yaw_deg)? % 2 {
+                0 => flip(MirrorAxis::Columns),
+                _ => flip(MirrorAxis::Rows),
+            },
+        }
+        .filter(|_| width > 0 && height > 0)
     }
 
     /// Image position (pixels) where direction `dir` appears, if it does.
@@ -196,6 +247,89 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The reflection of `d` in the vertical plane of azimuth `azimuth_deg`.
+    fn reflect(d: DVec3, azimuth_deg: f64) -> DVec3 {
+        let n = direction_from_az_el(azimuth_deg + 90.0, 0.0);
+        d - 2.0 * d.dot(n) * n
+    }
+
+    #[test]
+    fn the_mirror_takes_each_pixel_onto_its_reflection() {
+        // For every camera and orientation that has a mirror: the direction
+        // through any point of a pixel, reflected in the sun's vertical
+        // plane, is the direction through the reflected point of the
+        // partner pixel (so the partner's samples are the reflected ones).
+        let cases = [
+            (CameraKind::Equirect, 0.0, 0.0, 0.0, 180.0),
+            (CameraKind::Equirect, 0.0, 0.0, 0.0, 90.0),
+            // 256 columns: 1.40625° each, the sun on a column's centre.
+            (CameraKind::Equirect, 10.0, 20.0, 30.0, 1.40625 * 3.5),
+            (CameraKind::Perspective, 180.0, 10.0, 0.0, 180.0),
+            (CameraKind::Perspective, 0.0, -20.0, 180.0, 180.0),
+            (CameraKind::Perspective, 45.0, 60.0, 90.0, 225.0),
+            (CameraKind::Perspective, 30.0, 90.0, -90.0, 30.0),
+            (CameraKind::Fisheye, 0.0, 90.0, 0.0, 180.0),
+            (CameraKind::Fisheye, 20.0, 90.0, 0.0, 110.0),
+        ];
+        let (w, h) = (256u32, 128u32);
+        let mut checked = 0;
+        for (kind, yaw_deg, pitch_deg, roll_deg, sun_azimuth_deg) in cases {
+            let params = CameraParams {
+                kind,
+                fov_deg: kind.default_fov_deg(),
+                yaw_deg,
+                pitch_deg,
+                roll_deg,
+            };
+            let c = Camera::new(&params, w, h);
+            let mirror = c
+                .mirror(sun_azimuth_deg)
+                .unwrap_or_else(|| panic!("{params:?}: no mirror"));
+            for i in 0..997u32 {
+                let (x, y) = ((i * 37) % w, (i * 11) % h);
+                let (fx, fy) = (f64::from(i % 7) / 7.0, f64::from(i % 5) / 5.0);
+                let Some(d) = c.direction(f64::from(x) + fx, f64::from(y) + fy) else {
+                    continue;
+                };
+                let p = mirror.partner(x as usize, y as usize, w as usize, h as usize);
+                let (px, py) = ((p % w as usize) as f64, (p / w as usize) as f64);
+                // Within its pixel, the reflection flips the mirrored axis.
+                let (rx, ry) = match mirror.axis {
+                    MirrorAxis::Columns => (px + 1.0 - fx, py + fy),
+                    MirrorAxis::Rows => (px + fx, py + 1.0 - fy),
+                };
+                let r = c.direction(rx, ry).expect("the reflection is in view");
+                let expected = reflect(d, sun_azimuth_deg);
+                assert!(
+                    (r - expected).length() < 1e-9,
+                    "{params:?}, pixel ({x}, {y}) + ({fx}, {fy}): {r} vs {expected}"
+                );
+                checked += 1;
+            }
+        }
+        assert!(checked > 7000, "{checked}");
+    }
+
+    #[test]
+    fn no_mirror_where_the_reflection_misses_the_pixel_grid() {
+        let mirror = |kind, yaw_deg, roll_deg, sun_azimuth_deg| {
+            let params = CameraParams {
+                kind,
+                yaw_deg,
+                roll_deg,
+                ..CameraParams::default()
+            };
+            Camera::new(&params, 256, 128).mirror(sun_azimuth_deg)
+        };
+        // A quarter of a column off the grid.
+        assert!(mirror(CameraKind::Equirect, 0.0, 0.0, 1.40625 / 4.0).is_none());
+        assert!(mirror(CameraKind::Perspective, 170.0, 0.0, 180.0).is_none());
+        assert!(mirror(CameraKind::Perspective, 90.0, 0.0, 180.0).is_none());
+        assert!(mirror(CameraKind::Perspective, 180.0, 10.0, 180.0).is_none());
+        assert!(mirror(CameraKind::Fisheye, 0.0, 0.0, 45.0).is_none());
+        assert!(mirror(CameraKind::Equirect, 0.0, 0.0, 180.0).is_some());
     }
 
     #[test]

@@ -15,6 +15,16 @@
 //! information about their values and its mean stays unbiased — unlike
 //! adaptive schemes that stop sampling a pixel once its own estimate looks
 //! converged.
+//!
+//! **Mirror pairs.** The sky is mirror-symmetric about the sun's vertical
+//! plane: the atmosphere is spherically symmetric (a function of altitude
+//! alone), the ground uniform, the sun a disc. Where the camera maps that
+//! reflection onto the pixel grid ([`Mirror`], from `Camera::mirror`), a
+//! pixel and its mirror image have the same expected value, so the film
+//! reads both as the mean of their samples together: twice the samples per
+//! pixel at no cost, unbiased because each pixel's samples are. The plan
+//! then works on the *folded* image (one value per pair) and gives a pair's
+//! pixels the same count, read from other pairs only.
 
 use rayon::prelude::*;
 
@@ -40,6 +50,57 @@ const LOG2_OFFSET: f32 = 150.0;
 /// Bins: 0 for σ = 0 (not counted), then up to log₂ σ = 128.
 const BINS: usize = ((LOG2_OFFSET + 129.0) * BINS_PER_OCTAVE) as usize;
 
+/// Which pixel lines a [`Mirror`] reflects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MirrorAxis {
+    /// Column x ↦ (c − 1 − x) mod width, rows unchanged.
+    Columns,
+    /// Row y ↦ (c − 1 − y) mod height, columns unchanged.
+    Rows,
+}
+
+/// A reflection of the image onto itself that takes every pixel's footprint
+/// exactly onto a pixel's (its own on the mirror line): the sun's vertical
+/// plane as the camera sees it (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mirror {
+    pub axis: MirrorAxis,
+    /// c in the line map i ↦ (c − 1 − i) mod n, 0 ≤ c < n (n the lines).
+    pub centre: u32,
+}
+
+impl Mirror {
+    /// The line that line `i` of `n` maps to.
+    fn line(self, i: usize, n: usize) -> usize {
+        (self.centre as usize + 2 * n - 1 - i) % n
+    }
+
+    /// Row-major index of the mirror image of pixel (`x`, `y`).
+    pub fn partner(self, x: usize, y: usize, width: usize, height: usize) -> usize {
+        match self.axis {
+            MirrorAxis::Columns => y * width + self.line(x, width),
+            MirrorAxis::Rows => self.line(y, height) * width + x,
+        }
+    }
+
+    /// One line of each mirror pair (or fixed line), consecutive from ⌊c/2⌋
+    /// (mod n): neighbours in the image stay neighbours in the folded one.
+    fn canonical_lines(self, n: usize) -> Vec<usize> {
+        let mut taken = vec![false; n];
+        let mut lines = Vec::with_capacity(n / 2 + 1);
+        for k in 0..n {
+            let i = (self.centre as usize / 2 + k) % n;
+            if taken[i] {
+                break;
+            }
+            taken[i] = true;
+            taken[self.line(i, n)] = true;
+            lines.push(i);
+        }
+        lines
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct Film {
     pub width: u32,
@@ -57,6 +118,8 @@ pub struct Film {
     /// Samples discarded as non-finite (or negative without the control
     /// variate).
     pub discarded: u64,
+    /// Pixels read together with their mirror images; `None`: each alone.
+    mirror: Option<Mirror>,
 }
 
 impl Film {
@@ -70,7 +133,22 @@ impl Film {
             plan: Vec::new(),
             row_planned_passes: vec![0; height as usize],
             discarded: 0,
+            mirror: None,
         }
+    }
+
+    /// The film reading each pixel together with its image under `mirror`
+    /// (see the module documentation), which must be a symmetry of the
+    /// scene as the camera sees it; `None` reads each pixel alone.
+    #[must_use]
+    pub fn with_mirror(mut self, mirror: Option<Mirror>) -> Self {
+        self.mirror = mirror;
+        self
+    }
+
+    /// The mirror the film reads pixels in pairs by, if any.
+    pub fn mirror(&self) -> Option<Mirror> {
+        self.mirror
     }
 
     /// Passes completed by every row.
@@ -88,35 +166,44 @@ impl Film {
         self.plan.get(index).map_or(1, |&m| u32::from(m))
     }
 
-    /// 1 / (total weight) of pixel `index` in row `y` (1 before the first pass).
-    fn pixel_scale(&self, y: usize, index: usize) -> f64 {
+    /// Total weight of the samples of pixel `index` (row-major).
+    fn pixel_weight(&self, index: usize) -> f64 {
+        let y = index / self.width as usize;
         let extra = f64::from(self.samples_per_pass(index) - 1);
-        let w = self.row_weights[y] + extra * f64::from(self.row_planned_passes[y]);
-        if w > 0.0 {
-            1.0 / w
+        self.row_weights[y] + extra * f64::from(self.row_planned_passes[y])
+    }
+
+    /// Mean XYZ of pixel `index` (row-major), with its mirror image's samples
+    /// where the film has a mirror; 0 before the first pass.
+    fn mean(&self, index: usize) -> [f64; 3] {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut sum = self.xyz_sum[index].map(f64::from);
+        let mut weight = self.pixel_weight(index);
+        if let Some(mirror) = self.mirror {
+            let partner = mirror.partner(index % w, index / w, w, h);
+            if partner != index {
+                for (s, p) in sum.iter_mut().zip(self.xyz_sum[partner]) {
+                    *s += f64::from(p);
+                }
+                weight += self.pixel_weight(partner);
+            }
+        }
+        if weight > 0.0 {
+            sum.map(|s| s / weight)
         } else {
-            1.0
+            sum
         }
     }
 
     /// Mean XYZ of one pixel.
     pub fn xyz(&self, x: u32, y: u32) -> [f64; 3] {
-        let index = (y * self.width + x) as usize;
-        let scale = self.pixel_scale(y as usize, index);
-        self.xyz_sum[index].map(|v| f64::from(v) * scale)
+        self.mean((y * self.width + x) as usize)
     }
 
     /// The current estimate as linear Rec.709 (Y in cd m⁻²).
     pub fn to_rgb(&self) -> RgbImage {
-        let w = self.width as usize;
-        let pixels = self
-            .xyz_sum
-            .iter()
-            .enumerate()
-            .map(|(i, s)| {
-                let scale = self.pixel_scale(i / w, i);
-                xyz_to_rec709(s.map(|v| f64::from(v) * scale)).map(|c| c as f32)
-            })
+        let pixels = (0..self.xyz_sum.len())
+            .map(|i| xyz_to_rec709(self.mean(i)).map(|c| c as f32))
             .collect();
         RgbImage {
             width: self.width,
@@ -132,16 +219,54 @@ impl Film {
     /// is noisy or bright and structured (the aureole, a twilight glow), large
     /// — the absolute variance the mean of a pixel carries scales with both.
     /// Once only: a plan changed later would re-weight the passes before it
-    /// (does nothing on a planned film).
+    /// (does nothing on a planned film). With a mirror, on the folded image:
+    /// both pixels of a pair get the count planned for their pair, from the
+    /// other pairs' means.
     pub(crate) fn plan_samples(&mut self) {
         if self.is_planned() {
             return;
         }
-        let luminance: Vec<f32> = (0..self.height)
-            .flat_map(|y| (0..self.width).map(move |x| (x, y)))
-            .map(|(x, y)| self.xyz(x, y)[1] as f32)
-            .collect();
-        self.plan = plan(&luminance, self.width as usize, self.height as usize);
+        let (w, h) = (self.width as usize, self.height as usize);
+        // The folded image's pixels as (folded width, folded height, pixel
+        // index in the film per folded pixel).
+        let (fw, fh, pixels): (usize, usize, Vec<usize>) = match self.mirror {
+            None => (w, h, (0..w * h).collect()),
+            Some(
+                m @ Mirror {
+                    axis: MirrorAxis::Columns,
+                    ..
+                },
+            ) => {
+                let columns = m.canonical_lines(w);
+                let pixels = (0..h)
+                    .flat_map(|y| columns.iter().map(move |&x| y * w + x))
+                    .collect();
+                (columns.len(), h, pixels)
+            }
+            Some(
+                m @ Mirror {
+                    axis: MirrorAxis::Rows,
+                    ..
+                },
+            ) => {
+                let rows = m.canonical_lines(h);
+                let pixels = rows
+                    .iter()
+                    .flat_map(|&y| (0..w).map(move |x| y * w + x))
+                    .collect();
+                (w, rows.len(), pixels)
+            }
+        };
+        let luminance: Vec<f32> = pixels.iter().map(|&i| self.mean(i)[1] as f32).collect();
+        let folded = plan(&luminance, fw, fh);
+        let mut plan = vec![1u8; w * h];
+        for (&i, &m) in pixels.iter().zip(&folded) {
+            plan[i] = m;
+            if let Some(mirror) = self.mirror {
+                plan[mirror.partner(i % w, i / w, w, h)] = m;
+            }
+        }
+        self.plan = plan;
     }
 }
 
@@ -345,6 +470,128 @@ mod tests {
         let mut bright = image.clone();
         bright[7 * w + 11] = 1e6;
         assert_ne!(plan(&bright, w, h)[7 * w + 12], m[7 * w + 12]);
+    }
+
+    #[test]
+    fn canonical_lines_take_one_line_of_each_pair() {
+        for n in [1, 2, 7, 8, 256] {
+            for centre in 0..n as u32 {
+                let m = Mirror {
+                    axis: MirrorAxis::Columns,
+                    centre,
+                };
+                let lines = m.canonical_lines(n);
+                let mut seen = vec![0; n];
+                for &i in &lines {
+                    seen[i] += 1;
+                    seen[m.line(i, n)] += 1;
+                    assert_eq!(m.line(m.line(i, n), n), i, "an involution");
+                }
+                // Every line once, as a canonical line or its partner (a
+                // fixed line as both).
+                for (i, &count) in seen.iter().enumerate() {
+                    let fixed = m.line(i, n) == i;
+                    assert_eq!(count, 1 + usize::from(fixed), "n {n}, c {centre}, line {i}");
+                }
+                // Consecutive (mod n): the folded image keeps neighbours.
+                for pair in lines.windows(2) {
+                    assert_eq!(pair[1], (pair[0] + 1) % n);
+                }
+            }
+        }
+    }
+
+    /// A film of `w`×`h` pixels after one pass of weight 1 with the given
+    /// luminances (X = Z = 0).
+    fn film_of(luminance: &[f32], w: u32, h: u32, mirror: Option<Mirror>) -> Film {
+        let mut film = Film::new(w, h).with_mirror(mirror);
+        for (sum, &v) in film.xyz_sum.iter_mut().zip(luminance) {
+            *sum = [0.0, v, 0.0];
+        }
+        film.row_passes.fill(1);
+        film.row_weights.fill(1.0);
+        film
+    }
+
+    #[test]
+    fn a_mirrored_film_reads_each_pixel_with_its_mirror_image() {
+        let (w, h) = (12u32, 6u32);
+        let image: Vec<f32> = (0..w * h).map(|i| 10.0 * hash01(i as usize)).collect();
+        for (axis, centre) in [
+            (MirrorAxis::Columns, 0),
+            (MirrorAxis::Columns, 5),
+            (MirrorAxis::Rows, 0),
+        ] {
+            let mirror = Mirror { axis, centre };
+            let mut film = film_of(&image, w, h, Some(mirror));
+            // A second pass with twice the samples in some pixels (a plan):
+            // the pair's mean weighs each sample once.
+            film.plan = (0..w * h).map(|i| 1 + (i % 3) as u8).collect();
+            film.row_passes.fill(2);
+            film.row_weights.fill(2.0);
+            film.row_planned_passes.fill(1);
+            let rgb = film.to_rgb();
+            for y in 0..h {
+                for x in 0..w {
+                    let i = (y * w + x) as usize;
+                    let j = mirror.partner(x as usize, y as usize, w as usize, h as usize);
+                    let (ni, nj) = (1.0 + f64::from(film.plan[i]), 1.0 + f64::from(film.plan[j]));
+                    let expected = if i == j {
+                        f64::from(image[i]) / ni
+                    } else {
+                        (f64::from(image[i]) + f64::from(image[j])) / (ni + nj)
+                    };
+                    let got = film.xyz(x, y)[1];
+                    assert!(
+                        (got - expected).abs() < 1e-6 * expected.max(1.0),
+                        "{axis:?}"
+                    );
+                    assert_eq!(rgb.pixels[i], rgb.pixels[j]);
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn a_mirrored_plan_gives_a_pair_one_count_that_ignores_both_its_pixels() {
+        // The mirrored film reads a pixel with its partner, so the count of
+        // either must read neither's samples; both get the same count.
+        let (w, h) = (30u32, 20u32);
+        let image: Vec<f32> = (0..w * h)
+            .map(|i| 50.0 + 30.0 * hash01(i as usize))
+            .collect();
+        for mirror in [
+            Mirror {
+                axis: MirrorAxis::Columns,
+                centre: 11,
+            },
+            Mirror {
+                axis: MirrorAxis::Rows,
+                centre: 0,
+            },
+        ] {
+            let planned = |image: &[f32]| {
+                let mut film = film_of(image, w, h, Some(mirror));
+                film.plan_samples();
+                film.plan
+            };
+            let m = planned(&image);
+            let partner = |i: usize| mirror.partner(i % 30, i / 30, 30, 20);
+            assert!((0..600).all(|i| m[i] == m[partner(i)]), "{mirror:?}");
+            // Pixels on, next to and far from the mirror line.
+            for i in [0, 5 * 30 + 5, 7 * 30 + 11, 9 * 30 + 10, 599] {
+                for v in [0.0, 1e6, f32::MAX] {
+                    let mut changed = image.clone();
+                    changed[i] = v;
+                    changed[partner(i)] = v;
+                    let after = planned(&changed);
+                    assert_eq!(after[i], m[i], "{mirror:?}: pixel {i} and partner = {v}");
+                }
+            }
+            let mut bright = image.clone();
+            bright[7 * 30 + 15] = 1e6;
+            assert_ne!(planned(&bright), m, "the plan reads the other pixels");
+        }
     }
 
     #[test]

@@ -25,7 +25,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 pub use camera::{direction_from_az_el, Camera};
-pub use film::Film;
+pub use film::{Film, Mirror, MirrorAxis};
 pub use integrator::{Integrator, IntegratorOptions, Sampler};
 pub use medium::{LaneTable, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 
@@ -98,6 +98,8 @@ pub struct Renderer {
     draft_options: IntegratorOptions,
     /// The draft pass's weight in the film's average ([`draft_weight`]).
     draft_weight: f64,
+    /// The pixel pairs the film reads together (`mirror_symmetry`).
+    mirror: Option<Mirror>,
 }
 
 /// Result of one pass.
@@ -174,6 +176,11 @@ impl Renderer {
                 )
             }),
             draft_weight: draft_weight(scene.sun.elevation_deg),
+            mirror: scene
+                .render
+                .mirror_symmetry
+                .then(|| camera.mirror(scene.sun.azimuth_deg))
+                .flatten(),
             draft_options: IntegratorOptions {
                 camera_samples: 0,
                 control_variate: Some(false),
@@ -213,7 +220,7 @@ impl Renderer {
     }
 
     pub fn new_film(&self) -> Film {
-        Film::new(self.scene.render.width, self.scene.render.height)
+        Film::new(self.scene.render.width, self.scene.render.height).with_mirror(self.mirror)
     }
 
     /// The weight of pass `pass` in the film's average: the draft's
@@ -497,12 +504,14 @@ mod tests {
         }
     }
 
-    /// The sunset preset at 24×12, with adaptive sampling on or off.
+    /// The sunset preset at 24×12, with adaptive sampling on or off, each
+    /// pixel read alone (no mirror pairs).
     fn small_sunset(adaptive_sampling: bool) -> Renderer {
         let mut scene = Scene::preset("sunset").unwrap();
         scene.render.width = 24;
         scene.render.height = 12;
         scene.render.adaptive_sampling = adaptive_sampling;
+        scene.render.mirror_symmetry = false;
         Renderer::new(&scene).unwrap()
     }
 
