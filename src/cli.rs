@@ -136,7 +136,7 @@ pub struct SceneArgs {
     #[arg(long, allow_hyphen_values = true, value_name = "H")]
     pub height: Option<i64>,
     /// Samples per pixel: passes over the image; with adaptive sampling, the
-    /// least samples a pixel gets (noisy regions get up to 8 per pass).
+    /// least samples a pixel gets (noisy regions get up to 16 per pass).
     #[arg(long, allow_hyphen_values = true, value_name = "N")]
     pub spp: Option<i64>,
     /// One sample per pixel per pass everywhere (no adaptive sampling).

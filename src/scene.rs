@@ -116,10 +116,10 @@ impl Default for CameraParams {
     }
 }
 
-/// Most samples per pixel (passes) a scene may ask for, 2²¹: with up to 8
+/// Most samples per pixel (passes) a scene may ask for, 2²⁰: with up to 16
 /// samples per pass (adaptive sampling) that is 2²⁴ samples, about where the
 /// film's f32 sums (24-bit significand) stop registering one more.
-pub const MAX_SPP: u32 = 1 << 21;
+pub const MAX_SPP: u32 = 1 << 20;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -135,7 +135,7 @@ pub struct RenderParams {
     pub observer: Observer,
     /// PNG exposure in EV; `None` = automatic.
     pub exposure_ev: Option<f64>,
-    /// After the first full pass, give each pixel 1–8 samples per pass, more
+    /// After the first full pass, give each pixel 1–16 samples per pass, more
     /// where its neighbourhood is noisy (unbiased: see
     /// [`crate::render::film`]); `spp` then counts passes, the least samples
     /// a pixel gets.
@@ -402,8 +402,8 @@ mod tests {
         let e = Scene::preset("noon").unwrap_err();
         assert!(e.to_string().contains("midday"), "{e}");
         assert!(Scene::from_toml("[sun]\nelevation = 3").is_err());
-        let e = Scene::from_toml("[render]\nspp = 2097153").unwrap_err();
-        assert!(e.to_string().contains("1 to 2097152"), "{e}");
+        let e = Scene::from_toml("[render]\nspp = 1048577").unwrap_err();
+        assert!(e.to_string().contains("1 to 1048576"), "{e}");
     }
 
     #[test]

@@ -431,7 +431,7 @@ impl Renderer {
             .zip(film.row_weights.par_iter_mut())
             .zip(film.row_planned_passes.par_iter_mut())
             .enumerate()
-            // Rows differ up to 8× in cost under an adaptive plan (the
+            // Rows differ up to 16× in cost under an adaptive plan (the
             // horizon's glow, the aureole): hand them out one at a time so
             // both threads stay busy to the pass's end.
             .with_max_len(1)
