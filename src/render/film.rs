@@ -32,7 +32,7 @@ use crate::output::RgbImage;
 use crate::spectrum::xyz_to_rec709;
 
 /// Most samples per pass a planned pixel takes. 16 rather than 8 since the
-/// mirror pairs (session 18): with [`PLAN_SCALE`] 1.25, 0.92× the variance
+/// mirror pairs (session 18): with a plan scale of 1.25, 0.92× the variance
 /// per CPU second at twilight (fixed passes, two seed pairs; 0.91× per path
 /// over four), 0.99× at sunset and midday (`BENCHMARKS.md`).
 pub const MAX_SAMPLES_PER_PASS: u8 = 16;
