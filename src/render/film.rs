@@ -10,11 +10,11 @@
 //! film a plan (`Film::plan_samples`): every later pass takes 1–16 samples
 //! per pixel instead of one, more where the image was noisy. The plan of a
 //! pixel is read from its *neighbours'* values only (leave-one-out), which
-//! are independent of the pixel's own samples (every pixel has its own
-//! random streams), so the number of samples a pixel gets carries no
-//! information about their values and its mean stays unbiased — unlike
-//! adaptive schemes that stop sampling a pixel once its own estimate looks
-//! converged.
+//! are independent of the pixel's own samples (every pixel — with mirror
+//! pairs, below, every pair — has its own random streams), so the number
+//! of samples a pixel gets carries no information about their values and
+//! its mean stays unbiased — unlike adaptive schemes that stop sampling a
+//! pixel once its own estimate looks converged.
 //!
 //! **Mirror pairs.** The sky is mirror-symmetric about the sun's vertical
 //! plane: the atmosphere is spherically symmetric (a function of altitude
@@ -148,11 +148,6 @@ impl Film {
     pub fn with_mirror(mut self, mirror: Option<Mirror>) -> Self {
         self.mirror = mirror;
         self
-    }
-
-    /// The mirror the film reads pixels in pairs by, if any.
-    pub fn mirror(&self) -> Option<Mirror> {
-        self.mirror
     }
 
     /// Passes completed by every row.
