@@ -228,8 +228,8 @@ fn the_sky_is_mirror_symmetric_about_the_suns_vertical_plane() {
     // (an east–west error confined to some elevations), within 4 standard
     // errors — from the spread over pairs, independent since each pixel has
     // its own streams — and the whole sky's standard error is below 1 % of
-    // its mean (sunset; 0.37 % measured) or 2 % (twilight, 0.85 %, with its splitting, guiding
-    // and camera branches).
+    // its mean at sunset (0.41 % measured) and 2 % at twilight (0.85 %,
+    // with its splitting, guiding and camera branches).
     for (preset, power) in [("sunset", 0.01), ("twilight", 0.02)] {
         let mut scene = small(preset, 32, 16, 48);
         scene.render.mirror_symmetry = false;
