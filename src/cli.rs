@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand};
 use crate::atmosphere::Atmosphere;
 use crate::output::{self, OutputFormat};
 use crate::physics::standard_atmosphere;
-use crate::render::{service, Renderer};
+use crate::render::{service, MirrorAxis, Renderer};
 use crate::scene::{CameraKind, Scene, SceneError, MAX_ALTITUDE_M};
 
 /// Writes `text` to standard output. A reader that closed the pipe early
@@ -301,7 +301,10 @@ fn check_output_path(path: &Path) -> Result<(), CliError> {
 
 /// The header metadata written into EXR files: `skyrender:spp` is the passes
 /// rendered (the least samples a pixel has), `skyrender:samples_per_pixel`
-/// the camera paths per pixel on average (more under adaptive sampling).
+/// the camera paths per pixel on average (more under adaptive sampling),
+/// `skyrender:mirror_pairs` whether pixels were read with their mirror
+/// images in the sun's vertical plane (`columns` or `rows`: the image's
+/// mirrored axis; `none`), which doubles the samples behind each pixel.
 pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<(String, String)> {
     let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
     vec![
@@ -313,6 +316,15 @@ pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<
             format!("{:.2}", paths as f64 / pixels),
         ),
         ("skyrender:discarded_samples".into(), discarded.to_string()),
+        (
+            "skyrender:mirror_pairs".into(),
+            match crate::render::mirror_pairs(scene).map(|m| m.axis) {
+                Some(MirrorAxis::Columns) => "columns",
+                Some(MirrorAxis::Rows) => "rows",
+                None => "none",
+            }
+            .into(),
+        ),
         (
             "skyrender:units".into(),
             "linear Rec.709, Y = luminance in cd/m^2".into(),
@@ -433,10 +445,18 @@ pub fn run(command: Command) -> Result<(), CliError> {
             // pass: say how many paths a pixel got on average.
             let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
             let mean_spp = paths as f64 / pixels;
-            let adaptive = if scene.render.adaptive_sampling && mean_spp > f64::from(spp) {
-                format!(" (adaptive: {mean_spp:.1} per pixel on average)")
-            } else {
+            let mut notes = Vec::new();
+            if scene.render.adaptive_sampling && mean_spp > f64::from(spp) {
+                notes.push(format!("adaptive: {mean_spp:.1} per pixel on average"));
+            }
+            // Mirror pairs double the samples behind each pixel.
+            if crate::render::mirror_pairs(&scene).is_some() {
+                notes.push("read in mirror pairs".to_owned());
+            }
+            let adaptive = if notes.is_empty() {
                 String::new()
+            } else {
+                format!(" ({})", notes.join("; "))
             };
             outln!(
                 "{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M paths/s), {discarded} samples discarded -> {}",

@@ -79,9 +79,50 @@ fn render_writes_an_exr_with_scene_metadata() {
     assert_eq!(text(b"skyrender:spp"), "2");
     // The draft and one full pass, both one sample per pixel: 2.00.
     assert_eq!(text(b"skyrender:samples_per_pixel"), "2.00");
+    // The sunset's sun at azimuth 270°: a quarter of the 16 columns from
+    // the left edge, on a pixel edge — the image pairs columns.
+    assert_eq!(text(b"skyrender:mirror_pairs"), "columns");
+    assert!(stdout.contains("read in mirror pairs"), "{stdout}");
     assert!(image.attributes.chromaticities.is_some());
     // Only the EXR is left in the directory (atomic write, no temp files).
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}
+
+#[test]
+fn no_mirror_reads_every_pixel_alone_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    for (flags, pairs) in [
+        (&["--no-mirror"][..], "none"),
+        // 1° off the pixel grid (16 columns of 22.5°).
+        (&["--sun-azimuth", "271"][..], "none"),
+        (&[][..], "columns"),
+    ] {
+        let path = dir.path().join("sky.exr");
+        let mut args = vec![
+            "render", "--preset", "sunset", "--width", "16", "--height", "8",
+        ];
+        args.extend_from_slice(&["--spp", "2", "-o", path.to_str().unwrap()]);
+        args.extend_from_slice(flags);
+        let out = skyrender(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let stdout = String::from_utf8_lossy(&out.stdout);
+        assert_eq!(
+            stdout.contains("mirror pairs"),
+            pairs != "none",
+            "{flags:?}: {stdout}"
+        );
+        let image = exr::prelude::read_all_data_from_file(&path).unwrap();
+        let value = image.layer_data[0]
+            .attributes
+            .other
+            .iter()
+            .find(|(k, _)| k.as_slice() == b"skyrender:mirror_pairs")
+            .map(|(_, v)| match v {
+                exr::meta::attribute::AttributeValue::Text(t) => t.to_string(),
+                other => format!("{other:?}"),
+            });
+        assert_eq!(value.as_deref(), Some(pairs), "{flags:?}");
+    }
 }
 
 #[test]

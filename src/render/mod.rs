@@ -66,6 +66,19 @@ pub fn draft_weight(sun_elevation_deg: f64) -> f64 {
     }
 }
 
+/// The pixel pairs a film of `scene` reads together ([`film`]): its camera's
+/// image of the reflection in the sun's vertical plane ([`Camera::mirror`]),
+/// where `[render] mirror_symmetry` is on and that reflection takes pixels
+/// onto pixels; `None` otherwise.
+pub fn mirror_pairs(scene: &Scene) -> Option<Mirror> {
+    let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
+    scene
+        .render
+        .mirror_symmetry
+        .then(|| camera.mirror(scene.sun.azimuth_deg))
+        .flatten()
+}
+
 /// A scene made ready to render.
 pub struct Renderer {
     pub scene: Scene,
@@ -188,11 +201,7 @@ impl Renderer {
                 )
             }),
             draft_weight: draft_weight(scene.sun.elevation_deg),
-            mirror: scene
-                .render
-                .mirror_symmetry
-                .then(|| camera.mirror(scene.sun.azimuth_deg))
-                .flatten(),
+            mirror: mirror_pairs(scene),
             draft_options: IntegratorOptions {
                 camera_samples: 0,
                 control_variate: Some(false),
