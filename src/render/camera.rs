@@ -35,6 +35,7 @@ pub struct Camera {
     half_fov_rad: f64,
     yaw_rad: f64,
     yaw_deg: f64,
+    pitch_deg: f64,
     roll_deg: f64,
     /// Columns: right, up, forward (world from camera).
     right: DVec3,
@@ -61,6 +62,7 @@ impl Camera {
             half_fov_rad: half,
             yaw_rad: params.yaw_deg.to_radians(),
             yaw_deg: params.yaw_deg,
+            pitch_deg: params.pitch_deg,
             roll_deg: params.roll_deg,
             right,
             up,
@@ -108,13 +110,21 @@ impl Camera {
     /// * Perspective: with the view centre in the plane (yaw ≡ φ☉ mod 180°)
     ///   the plane holds `forward` and `up` before the roll and flips
     ///   `right`; a roll of 0° or 180° keeps that a flip of columns, 90° or
-    ///   270° makes it one of rows.
+    ///   270° makes it one of rows. Looking straight up (down), the view
+    ///   centre is in every vertical plane: `right` points to azimuth
+    ///   yaw + 90° − roll (+ roll) and `up` to yaw + 180° − roll (+ roll),
+    ///   so columns flip where yaw ∓ roll − φ☉ ≡ 0 (mod 180°), rows where
+    ///   ≡ 90°.
     /// * Fisheye: the image's azimuths θ = φ − yaw map to 2(φ☉ − yaw) − θ, a
     ///   flip of columns where φ☉ − yaw ≡ 0 (mod 180°), of rows where ≡ 90°.
     pub fn mirror(&self, sun_azimuth_deg: f64) -> Option<Mirror> {
         let (width, height) = (self.width as u32, self.height as u32);
-        // Within 1e-9 of a whole number: the reflected directions then
-        // differ from the reflected pixels' by ~1e-11 rad, far below noise.
+        if width == 0 || height == 0 {
+            return None;
+        }
+        // Within 1e-9 of a whole number (of pixels, or of quarter turns): the
+        // reflected directions then differ from the reflected pixels' by
+        // at most ~1e-8 rad, far below noise.
         let whole = |v: f64| Some(v.round()).filter(|r| (v - r).abs() < 1e-9);
         let quarter_turns = |deg: f64| whole(deg / 90.0).map(|q| q.rem_euclid(4.0) as u32);
         let flip = |axis| Some(Mirror { axis, centre: 0 });
@@ -128,10 +138,17 @@ impl Camera {
                 })
             }
             CameraKind::Perspective => {
-                if quarter_turns(self.yaw_deg - sun_azimuth_deg)? % 2 != 0 {
-                    return None;
-                }
-                match quarter_turns(self.roll_deg)? % 2 {
+                let turns = match whole(self.pitch_deg / 90.0).map(|q| q as i32) {
+                    Some(1) => quarter_turns(self.yaw_deg - self.roll_deg - sun_azimuth_deg)?,
+                    Some(-1) => quarter_turns(self.yaw_deg + self.roll_deg - sun_azimuth_deg)?,
+                    _ => {
+                        if quarter_turns(self.yaw_deg - sun_azimuth_deg)? % 2 != 0 {
+                            return None;
+                        }
+                        quarter_turns(self.roll_deg)?
+                    }
+                };
+                match turns % 2 {
                     0 => flip(MirrorAxis::Columns),
                     _ => flip(MirrorAxis::Rows),
                 }
@@ -141,7 +158,6 @@ impl Camera {
                 _ => flip(MirrorAxis::Rows),
             },
         }
-        .filter(|_| width > 0 && height > 0)
     }
 
     /// Image position (pixels) where direction `dir` appears, if it does.
@@ -270,46 +286,58 @@ mod tests {
             (CameraKind::Perspective, 0.0, -20.0, 180.0, 180.0),
             (CameraKind::Perspective, 45.0, 60.0, 90.0, 225.0),
             (CameraKind::Perspective, 30.0, 90.0, -90.0, 30.0),
+            // Straight up or down, yaw and roll both turn the image.
+            (CameraKind::Perspective, 0.0, 90.0, 0.0, 90.0),
+            (CameraKind::Perspective, 30.0, 90.0, 30.0, 0.0),
+            (CameraKind::Perspective, 30.0, -90.0, 30.0, 60.0),
+            (CameraKind::Perspective, 10.0, -90.0, 20.0, 120.0),
             (CameraKind::Fisheye, 0.0, 90.0, 0.0, 180.0),
             (CameraKind::Fisheye, 20.0, 90.0, 0.0, 110.0),
         ];
-        let (w, h) = (256u32, 128u32);
         let mut checked = 0;
-        for (kind, yaw_deg, pitch_deg, roll_deg, sun_azimuth_deg) in cases {
-            let params = CameraParams {
-                kind,
-                fov_deg: kind.default_fov_deg(),
-                yaw_deg,
-                pitch_deg,
-                roll_deg,
-            };
-            let c = Camera::new(&params, w, h);
-            let mirror = c
-                .mirror(sun_azimuth_deg)
-                .unwrap_or_else(|| panic!("{params:?}: no mirror"));
-            for i in 0..997u32 {
-                let (x, y) = ((i * 37) % w, (i * 11) % h);
-                let (fx, fy) = (f64::from(i % 7) / 7.0, f64::from(i % 5) / 5.0);
-                let Some(d) = c.direction(f64::from(x) + fx, f64::from(y) + fy) else {
+        // Odd and one-pixel sizes too; the equirect's mirror depends on the
+        // width (2u☉ × width whole), the others' do not.
+        for (w, h) in [(256u32, 128u32), (15, 9), (1, 7), (7, 1)] {
+            for (kind, yaw_deg, pitch_deg, roll_deg, sun_azimuth_deg) in cases {
+                let params = CameraParams {
+                    kind,
+                    fov_deg: kind.default_fov_deg(),
+                    yaw_deg,
+                    pitch_deg,
+                    roll_deg,
+                };
+                let c = Camera::new(&params, w, h);
+                let Some(mirror) = c.mirror(sun_azimuth_deg) else {
+                    assert!(
+                        kind == CameraKind::Equirect && (w, h) != (256, 128),
+                        "{params:?} at {w}×{h}: no mirror"
+                    );
                     continue;
                 };
-                let p = mirror.partner(x as usize, y as usize, w as usize, h as usize);
-                let (px, py) = ((p % w as usize) as f64, (p / w as usize) as f64);
-                // Within its pixel, the reflection flips the mirrored axis.
-                let (rx, ry) = match mirror.axis {
-                    MirrorAxis::Columns => (px + 1.0 - fx, py + fy),
-                    MirrorAxis::Rows => (px + fx, py + 1.0 - fy),
-                };
-                let r = c.direction(rx, ry).expect("the reflection is in view");
-                let expected = reflect(d, sun_azimuth_deg);
-                assert!(
-                    (r - expected).length() < 1e-9,
-                    "{params:?}, pixel ({x}, {y}) + ({fx}, {fy}): {r} vs {expected}"
-                );
-                checked += 1;
+                for i in 0..997u32 {
+                    let (x, y) = ((i * 37) % w, (i * 11) % h);
+                    let (fx, fy) = (f64::from(i % 7) / 7.0, f64::from(i % 5) / 5.0);
+                    let Some(d) = c.direction(f64::from(x) + fx, f64::from(y) + fy) else {
+                        continue;
+                    };
+                    let p = mirror.partner(x as usize, y as usize, w as usize, h as usize);
+                    let (px, py) = ((p % w as usize) as f64, (p / w as usize) as f64);
+                    // Within its pixel, the reflection flips the mirrored axis.
+                    let (rx, ry) = match mirror.axis {
+                        MirrorAxis::Columns => (px + 1.0 - fx, py + fy),
+                        MirrorAxis::Rows => (px + fx, py + 1.0 - fy),
+                    };
+                    let r = c.direction(rx, ry).expect("the reflection is in view");
+                    let expected = reflect(d, sun_azimuth_deg);
+                    assert!(
+                        (r - expected).length() < 1e-8,
+                        "{params:?} at {w}×{h}, pixel ({x}, {y}) + ({fx}, {fy}): {r} vs {expected}"
+                    );
+                    checked += 1;
+                }
             }
         }
-        assert!(checked > 7000, "{checked}");
+        assert!(checked > 20_000, "{checked}");
     }
 
     #[test]
@@ -330,6 +358,20 @@ mod tests {
         assert!(mirror(CameraKind::Perspective, 180.0, 10.0, 180.0).is_none());
         assert!(mirror(CameraKind::Fisheye, 0.0, 0.0, 45.0).is_none());
         assert!(mirror(CameraKind::Equirect, 0.0, 0.0, 180.0).is_some());
+        // Straight up, yaw − roll decides: 45° off the grid.
+        let up = CameraParams {
+            kind: CameraKind::Perspective,
+            yaw_deg: 30.0,
+            pitch_deg: 90.0,
+            roll_deg: 15.0,
+            ..CameraParams::default()
+        };
+        assert!(Camera::new(&up, 64, 64).mirror(60.0).is_none());
+        assert!(Camera::new(&up, 64, 64).mirror(15.0).is_some());
+        // No pixels, no mirror (and no panic).
+        assert!(Camera::new(&CameraParams::default(), 0, 0)
+            .mirror(180.0)
+            .is_none());
     }
 
     #[test]

@@ -123,7 +123,7 @@ pub struct Film {
     /// variate).
     pub discarded: u64,
     /// Pixels read together with their mirror images; `None`: each alone.
-    mirror: Option<Mirror>,
+    pub(crate) mirror: Option<Mirror>,
 }
 
 impl Film {
@@ -523,18 +523,30 @@ mod tests {
         ] {
             let mirror = Mirror { axis, centre };
             let mut film = film_of(&image, w, h, Some(mirror));
-            // A second pass with twice the samples in some pixels (a plan):
-            // the pair's mean weighs each sample once.
+            // A second pass with up to three samples in some pixels (a
+            // plan), which the even rows have taken and the odd ones not yet
+            // (a pass under way): the pair's mean weighs each sample once.
             film.plan = (0..w * h).map(|i| 1 + (i % 3) as u8).collect();
-            film.row_passes.fill(2);
-            film.row_weights.fill(2.0);
-            film.row_planned_passes.fill(1);
+            for y in (0..h as usize).step_by(2) {
+                film.row_passes[y] = 2;
+                film.row_weights[y] = 2.0;
+                film.row_planned_passes[y] = 1;
+            }
             let rgb = film.to_rgb();
             for y in 0..h {
                 for x in 0..w {
                     let i = (y * w + x) as usize;
                     let j = mirror.partner(x as usize, y as usize, w as usize, h as usize);
-                    let (ni, nj) = (1.0 + f64::from(film.plan[i]), 1.0 + f64::from(film.plan[j]));
+                    // Samples so far: 1, plus the plan's in even rows.
+                    let count = |k: usize| {
+                        let planned = (k / w as usize) % 2 == 0;
+                        1.0 + if planned {
+                            f64::from(film.plan[k])
+                        } else {
+                            0.0
+                        }
+                    };
+                    let (ni, nj) = (count(i), count(j));
                     let expected = if i == j {
                         f64::from(image[i]) / ni
                     } else {

@@ -411,13 +411,20 @@ impl Renderer {
     /// film is planned, each pixel's planned number of samples. With
     /// adaptive sampling on, the plan is made from the image when pass
     /// [`ADAPTIVE_FROM_PASS`] starts (see [`film`]). Stops
-    /// between rows once `cancelled()` returns true.
+    /// between rows once `cancelled()` returns true. `film` must come from
+    /// [`Self::new_film`]: mirror partners share their sequences, which only
+    /// a film that reads them as pairs (and plans them so) averages without
+    /// bias.
     pub fn render_pass(
         &self,
         film: &mut Film,
         pass: u32,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> PassStats {
+        assert!(
+            film.mirror == self.mirror,
+            "render_pass: a film from Renderer::new_film (its mirror pairs) is needed"
+        );
         if self.scene.render.adaptive_sampling
             && pass == ADAPTIVE_FROM_PASS
             && !film.is_planned()
