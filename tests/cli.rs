@@ -16,6 +16,20 @@ fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
 }
 
+/// The text of header attribute `key` of `image`'s first layer, if any (a
+/// non-text attribute as its debug form).
+fn exr_text(image: &exr::image::AnyImage, key: &str) -> Option<String> {
+    image.layer_data[0]
+        .attributes
+        .other
+        .iter()
+        .find(|(k, _)| k.as_slice() == key.as_bytes())
+        .map(|(_, v)| match v {
+            exr::meta::attribute::AttributeValue::Text(t) => t.to_string(),
+            other => format!("{other:?}"),
+        })
+}
+
 /// A failing run: non-zero exit, a one-line error naming `needle`, and no file.
 fn assert_rejected(args: &[&str], needle: &str, output: Option<&Path>) {
     let out = skyrender(args);
@@ -59,29 +73,15 @@ fn render_writes_an_exr_with_scene_metadata() {
         "{stdout}"
     );
     let image = exr::prelude::read_all_data_from_file(&path).unwrap();
-    let attributes = &image.layer_data[0].attributes.other;
-    let scene = attributes
-        .iter()
-        .find(|(k, _)| k.as_slice() == b"skyrender:scene")
-        .map(|(_, v)| format!("{v:?}"))
-        .expect("scene attribute");
+    let text = |key: &str| exr_text(&image, key).unwrap_or_else(|| panic!("{key} missing"));
+    let scene = text("skyrender:scene");
     assert!(scene.contains("elevation_deg"), "{scene}");
-    let text = |key: &[u8]| {
-        let (_, value) = attributes
-            .iter()
-            .find(|(k, _)| k.as_slice() == key)
-            .unwrap_or_else(|| panic!("{} missing", String::from_utf8_lossy(key)));
-        match value {
-            exr::meta::attribute::AttributeValue::Text(t) => t.to_string(),
-            other => format!("{other:?}"),
-        }
-    };
-    assert_eq!(text(b"skyrender:spp"), "2");
+    assert_eq!(text("skyrender:spp"), "2");
     // The draft and one full pass, both one sample per pixel: 2.00.
-    assert_eq!(text(b"skyrender:samples_per_pixel"), "2.00");
+    assert_eq!(text("skyrender:samples_per_pixel"), "2.00");
     // The sunset's sun at azimuth 270°: a quarter of the 16 columns from
     // the left edge, on a pixel edge — the image pairs columns.
-    assert_eq!(text(b"skyrender:mirror_pairs"), "columns");
+    assert_eq!(text("skyrender:mirror_pairs"), "columns");
     assert!(stdout.contains("read in mirror pairs"), "{stdout}");
     assert!(image.attributes.chromaticities.is_some());
     // Only the EXR is left in the directory (atomic write, no temp files).
@@ -112,15 +112,7 @@ fn no_mirror_reads_every_pixel_alone_and_says_so() {
             "{flags:?}: {stdout}"
         );
         let image = exr::prelude::read_all_data_from_file(&path).unwrap();
-        let value = image.layer_data[0]
-            .attributes
-            .other
-            .iter()
-            .find(|(k, _)| k.as_slice() == b"skyrender:mirror_pairs")
-            .map(|(_, v)| match v {
-                exr::meta::attribute::AttributeValue::Text(t) => t.to_string(),
-                other => format!("{other:?}"),
-            });
+        let value = exr_text(&image, "skyrender:mirror_pairs");
         assert_eq!(value.as_deref(), Some(pairs), "{flags:?}");
     }
 }
@@ -443,12 +435,6 @@ fn switching_a_fisheye_scene_to_perspective_takes_the_perspective_default() {
     ]);
     assert!(out.status.success(), "{}", stderr(&out));
     let image = exr::prelude::read_all_data_from_file(&path).unwrap();
-    let scene_text = image.layer_data[0]
-        .attributes
-        .other
-        .iter()
-        .find(|(k, _)| k.as_slice() == b"skyrender:scene")
-        .map(|(_, v)| format!("{v:?}"))
-        .unwrap();
+    let scene_text = exr_text(&image, "skyrender:scene").unwrap();
     assert!(scene_text.contains("fov_deg = 90.0"), "{scene_text}");
 }

@@ -33,7 +33,6 @@ pub struct Camera {
     height: f64,
     tan_half_fov: f64,
     half_fov_rad: f64,
-    yaw_rad: f64,
     yaw_deg: f64,
     pitch_deg: f64,
     roll_deg: f64,
@@ -60,7 +59,6 @@ impl Camera {
             height: f64::from(height),
             tan_half_fov: half.min(89.5f64.to_radians()).tan(),
             half_fov_rad: half,
-            yaw_rad: params.yaw_deg.to_radians(),
             yaw_deg: params.yaw_deg,
             pitch_deg: params.pitch_deg,
             roll_deg: params.roll_deg,
@@ -91,7 +89,7 @@ impl Camera {
                     return None;
                 }
                 let zenith_angle = r * self.half_fov_rad;
-                let azimuth = (-nx).atan2(ny) + self.yaw_rad;
+                let azimuth = (-nx).atan2(ny) + self.yaw_deg.to_radians();
                 Some(direction_from_az_el(
                     azimuth.to_degrees(),
                     90.0 - zenith_angle.to_degrees(),
@@ -187,7 +185,7 @@ impl Camera {
                 if r > 1.0 {
                     return None;
                 }
-                let a = az.to_radians() - self.yaw_rad;
+                let a = (az - self.yaw_deg).to_radians();
                 let scale = self.width.min(self.height);
                 let nx = -r * a.sin();
                 let ny = r * a.cos();
