@@ -43,7 +43,7 @@ use crate::scene::{CameraKind, Scene};
 pub struct BenchArgs {
     /// Time budget per scene, seconds, split between two independent
     /// renders (default 10; 0.4 with --quick).
-    #[arg(long, value_name = "SECONDS")]
+    #[arg(long, allow_hyphen_values = true, value_name = "SECONDS")]
     pub budget: Option<f64>,
     /// Comma-separated scenes: midday, sunset, twilight, space (256×128
     /// equirect) and preview (the app's default preview) by default; any
@@ -51,7 +51,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
     pub scenes: Option<Vec<String>>,
     /// Worker threads (default: all cores).
-    #[arg(long, value_name = "N")]
+    #[arg(long, allow_hyphen_values = true, value_name = "N")]
     pub threads: Option<usize>,
     /// Print JSON (progress goes to stderr).
     #[arg(long)]
@@ -76,7 +76,7 @@ pub struct BenchArgs {
     /// Seed of render A; B takes the next (default 0x5eed000a). With the
     /// same seeds two runs differ only by their pass counts: another seed
     /// repeats a measurement independently.
-    #[arg(long, value_name = "S")]
+    #[arg(long, allow_hyphen_values = true, value_name = "S")]
     pub seed: Option<u64>,
 }
 
@@ -331,7 +331,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
-    for (k, seed) in [seed, seed.wrapping_add(1)].into_iter().enumerate() {
+    for (k, seed) in [seed, seed + 1].into_iter().enumerate() {
         let mut s = scene.clone();
         s.render.seed = seed;
         let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
@@ -678,6 +678,9 @@ fn selected_variants(names: Option<&[String]>) -> Result<Vec<Selected>, String> 
                 )
             };
             let (key, text) = n.split_once('=').ok_or_else(unknown)?;
+            if key.trim().is_empty() {
+                return Err(format!("--variants: '{n}' names no option (key=value)"));
+            }
             let value = toml::from_str::<toml::Table>(&format!("v = {text}"))
                 .ok()
                 .and_then(|mut t| t.remove("v"))
@@ -871,6 +874,12 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         ));
     }
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
+    let max_seed = crate::scene::MAX_SEED - 1;
+    if seed > max_seed {
+        return Err(format!(
+            "bench: invalid seed: {seed} is outside the valid range 0 to {max_seed} (B renders with seed + 1)"
+        ));
+    }
     // Checked before anything is measured.
     let variants = if args.ablation || args.variants.is_some() {
         selected_variants(args.variants.as_deref())?
@@ -987,7 +996,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         format!(
             "noise: sqrt(mean((A-B)^2)/4) / mean((A+B)/2) on luminance Y, A and B independent renders (seeds {:#x}, {:#x}) of budget/2 each, whole passes only (stopping at the pass boundary nearest to budget/2; the time actually spent is in details.run.seconds)",
             seed,
-            seed.wrapping_add(1)
+            seed + 1
         ),
         format!(
             "sky pixels: pixel centres above the horizon (observer inside the atmosphere) or with non-zero mean luminance (observer above it, e.g. space); pixel centres within {SUN_CONE_DEG} deg of the sun's centre excluded"
@@ -1427,6 +1436,7 @@ mod tests {
             ),
             ("sky_guide=7", "7 is outside the valid range 0 to 1"),
             ("camera_branches", "unknown variant"),
+            ("=3", "'=3' names no option"),
         ] {
             let err = selected_variants(Some(&[bad.to_owned()])).err().unwrap();
             assert!(

@@ -39,7 +39,12 @@ macro_rules! outln {
 /// Physically based spectral sky renderer. Without a subcommand, opens the
 /// interactive preview.
 #[derive(Parser, Debug)]
-#[command(name = "skyrender", version, about)]
+#[command(
+    name = "skyrender",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
 pub struct Cli {
     #[command(subcommand)]
     pub command: Option<Command>,
@@ -47,7 +52,12 @@ pub struct Cli {
     #[arg(long, value_name = "OUT.png")]
     pub screenshot: Option<PathBuf>,
     /// Preview app: seconds to let the image refine before the screenshot.
-    #[arg(long, value_name = "SECONDS", default_value_t = 5.0)]
+    #[arg(
+        long,
+        allow_hyphen_values = true,
+        value_name = "SECONDS",
+        default_value_t = 5.0
+    )]
     pub screenshot_after: f64,
     /// Preview app: start from this preset.
     #[arg(long, value_name = "NAME")]
@@ -146,7 +156,7 @@ pub struct SceneArgs {
     /// vertical plane (see `[render] mirror_symmetry`).
     #[arg(long)]
     pub no_mirror: bool,
-    #[arg(long, value_name = "S")]
+    #[arg(long, allow_hyphen_values = true, value_name = "S")]
     pub seed: Option<u64>,
     #[arg(long)]
     pub no_aerosols: bool,

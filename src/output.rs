@@ -377,7 +377,8 @@ fn checked_size(path: &Path, image: &RgbImage) -> Result<(usize, usize), OutputE
 /// Writes via `write` into a temporary file beside `path`, then renames it over `path`.
 ///
 /// On error the temporary file is deleted (when the `NamedTempFile` is dropped) and `path`
-/// is left as it was.
+/// is left as it was. A symbolic link at `path` stays a link: the file it points to is
+/// the one replaced. A replaced file keeps its permissions.
 fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), OutputError>,
@@ -386,7 +387,8 @@ fn write_atomically(
         path: path.to_path_buf(),
         source,
     };
-    let directory = parent_dir(path);
+    let target = link_target(path);
+    let directory = parent_dir(&target);
     // Report a missing directory plainly, rather than via the temp file's name.
     std::fs::metadata(directory).map_err(io_error)?;
     let mut temp = temp_file_in(directory).map_err(io_error)?;
@@ -397,8 +399,28 @@ fn write_atomically(
         writer.flush().map_err(io_error)?;
     }
     temp.as_file().sync_all().map_err(io_error)?;
-    temp.persist(path).map_err(|error| io_error(error.error))?;
+    if let Ok(existing) = std::fs::metadata(&target) {
+        temp.as_file()
+            .set_permissions(existing.permissions())
+            .map_err(io_error)?;
+    }
+    temp.persist(&target)
+        .map_err(|error| io_error(error.error))?;
     Ok(())
+}
+
+/// The file `path` names once symbolic links are followed (at most 40, as
+/// Linux does; a dangling link names the file it points to, to be created).
+/// A path that is not a link is its own target.
+fn link_target(path: &Path) -> PathBuf {
+    let mut target = path.to_path_buf();
+    for _ in 0..40 {
+        match std::fs::read_link(&target) {
+            Ok(link) => target = parent_dir(&target).join(link),
+            Err(_) => break,
+        }
+    }
+    target
 }
 
 /// Middle grey: the display value the log-average luminance is mapped to (Reinhard's key).
@@ -422,19 +444,45 @@ pub fn temp_file_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     builder.tempfile_in(dir)
 }
 
+/// Longest file name most file systems take (`NAME_MAX` on Linux, macOS
+/// and Windows' NTFS), bytes.
+const MAX_FILE_NAME_BYTES: usize = 255;
+
 /// Checks, before any work, that a file can be written atomically at
-/// `path`: it is not a directory and a temporary file can be created beside
-/// it. The error names the path and the reason.
+/// `path`: it names a file (not a directory, no trailing separator, a name
+/// of at most 255 bytes) and a temporary file can be created beside it.
+/// The error names the path and the reason.
 pub fn check_writable(path: &Path) -> Result<(), String> {
+    let fail = |reason: String| Err(format!("cannot write '{}': {reason}", path.display()));
+    let text = path.as_os_str().to_string_lossy();
     if path.is_dir() {
-        return Err(format!(
-            "cannot write '{}': it is a directory",
-            path.display()
+        return fail("it is a directory".into());
+    }
+    if text.ends_with(std::path::is_separator) {
+        return fail("it ends with a separator, so it names a directory".into());
+    }
+    let target = link_target(path);
+    let Some(name) = target.file_name() else {
+        return fail("it names no file".into());
+    };
+    if name.len() > MAX_FILE_NAME_BYTES {
+        return fail(format!(
+            "the file name is {} bytes long (at most {MAX_FILE_NAME_BYTES})",
+            name.len()
         ));
     }
-    temp_file_in(parent_dir(path))
-        .map(drop)
-        .map_err(|e| format!("cannot write '{}': {e}", path.display()))
+    let directory = parent_dir(&target);
+    if let Err(e) = std::fs::metadata(directory) {
+        return fail(format!("directory '{}': {e}", directory.display()));
+    }
+    temp_file_in(directory).map(drop).map_err(|e| {
+        format!(
+            "cannot write '{}': cannot create a file in '{}' ({})",
+            path.display(),
+            directory.display(),
+            e.kind()
+        )
+    })
 }
 
 /// Fraction of the brightest valid pixels ignored by [`auto_exposure_ev`] (e.g. the sun).

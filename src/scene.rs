@@ -120,6 +120,14 @@ impl Default for CameraParams {
 /// samples per pass (adaptive sampling) that is 2²⁴ samples, about where the
 /// film's f32 sums (24-bit significand) stop registering one more.
 pub const MAX_SPP: u32 = 1 << 20;
+/// Most pixels a render may have: 16384 × 8192, the largest panoramas in
+/// common use. Memory grows with the pixels (0.78 GiB peak for an 8192 ×
+/// 4096 export, `BENCHMARKS.md`), so this is about 3 GiB; a much larger
+/// image would fail to allocate, which aborts the program.
+pub const MAX_PIXELS: u64 = 16_384 * 8_192;
+/// Largest seed: TOML's integers are signed 64-bit, so a larger one could
+/// not be read back from the scene a render embeds in its EXR.
+pub const MAX_SEED: u64 = i64::MAX as u64;
 
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -339,7 +347,23 @@ impl Scene {
                 format!("{} is outside the valid range 1 to 65536", r.height),
             ));
         }
+        let pixels = u64::from(r.width) * u64::from(r.height);
+        if pixels > MAX_PIXELS {
+            return Err(SceneError::new(
+                "width × height",
+                format!(
+                    "{} × {} = {pixels} pixels is more than the {MAX_PIXELS} (16384 × 8192) a render may have",
+                    r.width, r.height
+                ),
+            ));
+        }
         check_count("spp", r.spp as usize, 1, MAX_SPP as usize)?;
+        if r.seed > MAX_SEED {
+            return Err(SceneError::new(
+                "seed",
+                format!("{} is outside the valid range 0 to {MAX_SEED}", r.seed),
+            ));
+        }
         if let Some(ev) = r.exposure_ev {
             check_range("exposure (EV)", ev, -50.0, 50.0)?;
         }
@@ -373,6 +397,14 @@ impl Scene {
             0,
             crate::render::integrator::MAX_FORCED_COLLISION_DEPTH as usize,
         )?;
+        if i.splitting == Some(true) && !i.russian_roulette {
+            // Splitting's other half is roulette (dim paths end); without
+            // it the option would silently do nothing.
+            return Err(SceneError::new(
+                "splitting",
+                "needs russian_roulette = true (roulette and splitting by importance go together)",
+            ));
+        }
         Ok(())
     }
 }
@@ -404,6 +436,22 @@ mod tests {
         assert!(Scene::from_toml("[sun]\nelevation = 3").is_err());
         let e = Scene::from_toml("[render]\nspp = 1048577").unwrap_err();
         assert!(e.to_string().contains("1 to 1048576"), "{e}");
+        // Each side in range, but too many pixels to allocate.
+        let e = Scene::from_toml("[render]\nwidth = 65536\nheight = 65536").unwrap_err();
+        assert_eq!(e.parameter, "width × height");
+        assert!(e.to_string().contains("134217728 (16384 × 8192)"), "{e}");
+        assert!(Scene::from_toml("[render]\nwidth = 16384\nheight = 8192").is_ok());
+        // A seed a scene file can hold, so an EXR's embedded scene reloads.
+        scene = Scene::default();
+        scene.render.seed = u64::MAX;
+        let e = scene.validate().unwrap_err();
+        assert!(e.to_string().contains("0 to 9223372036854775807"), "{e}");
+        scene.render.seed = MAX_SEED;
+        assert_eq!(Scene::from_toml(&scene.to_toml()).unwrap(), scene);
+        let e = Scene::from_toml("[render.integrator]\nsplitting = true\nrussian_roulette = false")
+            .unwrap_err();
+        assert_eq!(e.parameter, "splitting");
+        assert!(e.to_string().contains("russian_roulette = true"), "{e}");
     }
 
     #[test]

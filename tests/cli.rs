@@ -182,6 +182,21 @@ fn bad_inputs_get_one_line_errors_and_no_file() {
             "--scene",
         ),
         (vec!["render", "--no-such-flag", "-o", o], "--no-such-flag"),
+        (vec!["render", "--seed", "-1", "-o", o], "--seed"),
+        // A seed the scene embedded in the EXR could not hold.
+        (
+            vec!["render", "--seed", "18446744073709551615", "-o", o],
+            "0 to 9223372036854775807",
+        ),
+        // Each side in range, the whole too large to allocate.
+        (
+            vec!["render", "--width", "65536", "--height", "65536", "-o", o],
+            "width × height",
+        ),
+        // The app's options are not the subcommands'.
+        (vec!["--preset", "sunset", "render", "-o", o], "--preset"),
+        (vec!["bench", "--budget", "-1"], "budget"),
+        (vec!["bench", "--seed", "9223372036854775807"], "seed"),
     ];
     for (args, needle) in cases {
         assert_rejected(&args, needle, Some(&out));
@@ -197,6 +212,26 @@ fn bad_inputs_get_one_line_errors_and_no_file() {
         &["render", "--spp", "1", "-o", unwritable.to_str().unwrap()],
         "output",
         Some(&unwritable),
+    );
+    // Names no file system takes: refused before the render, not after.
+    let long = dir.path().join(format!("{}.exr", "a".repeat(300)));
+    assert_rejected(
+        &["render", "--spp", "1", "-o", long.to_str().unwrap()],
+        "at most 255",
+        Some(&long),
+    );
+    let slash = format!("{o}/");
+    assert_rejected(
+        &["render", "--spp", "1", "-o", &slash],
+        "directory",
+        Some(&out),
+    );
+    // The app's screenshot path is checked before any window opens.
+    let shot = dir.path().join("missing-dir").join("shot.png");
+    assert_rejected(
+        &["--screenshot", shot.to_str().unwrap()],
+        "screenshot path",
+        Some(&shot),
     );
     // A directory in the way of the output: named, and left as it was.
     let in_the_way = dir.path().join("taken.exr");

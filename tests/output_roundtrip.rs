@@ -279,3 +279,64 @@ fn written_files_get_default_permissions() {
     let mode = |path: &Path| fs::metadata(path).unwrap().permissions().mode() & 0o777;
     assert_eq!(mode(&path), mode(&reference));
 }
+
+#[cfg(unix)]
+#[test]
+fn overwriting_keeps_the_files_permissions_and_links() {
+    use std::os::unix::fs::PermissionsExt as _;
+    let dir = tempfile::tempdir().unwrap();
+    let mode = |path: &Path| fs::metadata(path).unwrap().permissions().mode() & 0o777;
+    // A private file stays private when a render replaces it.
+    let path = dir.path().join("sky.exr");
+    fs::write(&path, b"old").unwrap();
+    fs::set_permissions(&path, fs::Permissions::from_mode(0o600)).unwrap();
+    write_exr(&path, &test_image(2, 2), &[]).unwrap();
+    assert_eq!(mode(&path), 0o600);
+    assert_ne!(fs::read(&path).unwrap(), b"old");
+    // A link stays a link; the file it points to (relative to the link's
+    // directory) is the one replaced, and a dangling link's target is created.
+    fs::create_dir(dir.path().join("renders")).unwrap();
+    let real = dir.path().join("renders").join("real.png");
+    fs::write(&real, b"old").unwrap();
+    let link = dir.path().join("latest.png");
+    std::os::unix::fs::symlink("renders/real.png", &link).unwrap();
+    write_png(&link, &test_image(2, 2), None).unwrap();
+    assert!(fs::symlink_metadata(&link)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert_eq!(&fs::read(&real).unwrap()[..4], b"\x89PNG");
+    let dangling = dir.path().join("next.exr");
+    std::os::unix::fs::symlink("renders/next.exr", &dangling).unwrap();
+    write_exr(&dangling, &test_image(2, 2), &[]).unwrap();
+    assert!(fs::symlink_metadata(&dangling)
+        .unwrap()
+        .file_type()
+        .is_symlink());
+    assert!(dir.path().join("renders").join("next.exr").is_file());
+    assert_eq!(
+        dir_entries(&dir.path().join("renders")),
+        ["next.exr", "real.png"]
+    );
+}
+
+#[test]
+fn paths_that_cannot_name_the_output_are_refused_before_any_work() {
+    use skyrender::output::check_writable;
+    let dir = tempfile::tempdir().unwrap();
+    let refused = |path: &Path, reason: &str| {
+        let message = check_writable(path).unwrap_err();
+        assert!(message.contains(reason), "{message}");
+        assert!(
+            !message.contains(".skyrender-"),
+            "temp file named: {message}"
+        );
+    };
+    refused(&dir.path().join("sky.exr/"), "names a directory");
+    refused(dir.path(), "is a directory");
+    let long = dir.path().join(format!("{}.exr", "a".repeat(300)));
+    refused(&long, "304 bytes long (at most 255)");
+    refused(&dir.path().join("missing").join("sky.exr"), "missing");
+    assert!(check_writable(&dir.path().join(format!("{}.exr", "a".repeat(251)))).is_ok());
+    assert!(dir_entries(dir.path()).is_empty());
+}

@@ -403,11 +403,19 @@ impl SkyApp {
                         self.state.message = Some(format!("loaded '{}'", path.display()));
                     }
                 }
-                TaskResult::SceneLoaded(_, Err(e)) | TaskResult::Saved(_, _, Err(e)) => {
+                TaskResult::SceneLoaded(_, Err(e)) => {
                     self.state.last_error = Some(e);
                 }
-                TaskResult::Saved(what, path, Ok(())) => {
-                    self.state.message = Some(format!("saved {what} to '{}'", path.display()));
+                TaskResult::Saved(what, path, result) => {
+                    match result {
+                        Ok(()) => {
+                            self.state.message =
+                                Some(format!("saved {what} to '{}'", path.display()));
+                        }
+                        Err(e) => self.state.last_error = Some(e),
+                    }
+                    // `--screenshot` ends the run either way: `run_app`
+                    // reports the outcome and sets the exit status.
                     if what == "screenshot" {
                         if let Some(ctx) = &self.ctx {
                             ctx.send_viewport_cmd(egui::ViewportCommand::Close);
@@ -1319,6 +1327,7 @@ pub fn run_app(
                 path.display()
             ));
         }
+        crate::output::check_writable(path).map_err(|e| format!("invalid screenshot path: {e}"))?;
     }
     if !has_display() {
         return Err(NO_DISPLAY_MESSAGE.into());

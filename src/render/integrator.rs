@@ -348,9 +348,12 @@ impl IntegratorOptions {
                 },
             )),
             sky_guide_sunlit: Some(self.sky_guide_sunlit.unwrap_or(low_sun)),
+            // Splitting needs roulette (the scene refuses one without the
+            // other); unset, it follows it.
             splitting: Some(
-                self.splitting
-                    .unwrap_or(sun_elevation_deg < SPLITTING_ELEVATION_DEG),
+                self.splitting.unwrap_or(
+                    self.russian_roulette && sun_elevation_deg < SPLITTING_ELEVATION_DEG,
+                ),
             ),
             control_variate: Some(control),
             sun_lobe: Some(self.sun_lobe.unwrap_or(if control {
@@ -401,6 +404,13 @@ const ROULETTE_WEIGHT: f64 = 0.25;
 const SPLIT_WEIGHT: f64 = 2.0;
 /// Most copies of one path at one vertex.
 const MAX_SPLIT: usize = 4;
+/// Most copies one path start may become through splitting (the product of
+/// the copies made along any copy's line). Without it, a thick haze below
+/// the sunlit air, whose importance grows by orders of magnitude from the
+/// ground up, split each start into ~20 000 copies (aerosol amount 100 at
+/// −4°: 60 000 vertices per camera path against 13 in the preset); at
+/// the presets the cap is never reached (`BENCHMARKS.md`, session 19).
+const MAX_COPIES: usize = 256;
 /// Largest [`IntegratorOptions::forced_collision_depth`] accepted (the
 /// depth past which roulette caps survival at 0.9).
 pub const MAX_FORCED_COLLISION_DEPTH: u32 = ROULETTE_CAP_DEPTH;
@@ -413,6 +423,18 @@ const CONTROL_DIRECTIONS: (usize, usize) = (32, 16);
 const CONTROL_SEED: u64 = 0xc047_a01e;
 /// Most branches of a camera path.
 pub const MAX_BRANCHES: usize = 8;
+
+/// Where a path stands in roulette and splitting by importance
+/// ([`Integrator::weight_window`]).
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    /// Expected light at the path's start (or where a cap last lifted it),
+    /// per unit weight.
+    reference: f64,
+    /// How many copies of its start this path is one of (at most
+    /// [`MAX_COPIES`]).
+    copies: usize,
+}
 
 /// Where a path starts: position, direction, scatterings so far, and the
 /// scale of its weight for roulette (see [`survives_roulette`]).
@@ -801,10 +823,13 @@ impl<'a> Integrator<'a> {
         radiance: &mut Lanes,
         rng: &mut Rng,
     ) {
-        let reference = self.importance(origin);
+        let window = self.importance(origin).map(|reference| Window {
+            reference,
+            copies: 1,
+        });
         self.walk_sunlit(
             Next::Vertex((origin, dir, beta)),
-            (depth, split, reference),
+            (depth, split, window),
             lanes,
             radiance,
             rng,
@@ -824,30 +849,30 @@ impl<'a> Integrator<'a> {
     fn walk_sunlit(
         &self,
         next: Next<'a>,
-        (depth, split, reference): (u32, f64, Option<f64>),
+        (depth, split, window): (u32, f64, Option<Window>),
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
     ) {
         let mut next = Some(next);
         let mut depth = depth;
-        let mut reference = reference;
+        let mut window = window;
         while let Some(n) = next {
             // The guide at the vertex, where choosing its direction looked it up.
             let ((origin, dir, beta), at) = match n {
                 Next::Vertex(vertex) => (vertex, None),
                 Next::Scatter(x, dir_in, mut beta, control) => {
                     let c = self.medium.coefficients(x.length(), lanes);
-                    let copies = reference.and_then(|reference| {
-                        self.weight_window(x, &c, &mut beta, (depth, split, reference), lanes, rng)
+                    let copies = window.and_then(|window| {
+                        self.weight_window(x, &c, &mut beta, (depth, split, window), lanes, rng)
                     });
                     match copies {
                         Some((0, _)) => break,
-                        Some((copies, copies_reference)) => {
+                        Some((copies, copies_window)) => {
                             // This path goes on as the last copy.
-                            reference = Some(copies_reference);
+                            window = Some(copies_window);
                             let from = (x, dir_in, &c, control.as_ref());
-                            let walk = (depth, split, reference);
+                            let walk = (depth, split, window);
                             self.copies(from, beta, copies, walk, lanes, radiance, rng)
                         }
                         None => {
@@ -890,7 +915,7 @@ impl<'a> Integrator<'a> {
         ),
         beta: Lanes,
         copies: usize,
-        walk: (u32, f64, Option<f64>),
+        walk: (u32, f64, Option<Window>),
         lanes: &SpectralLanes,
         radiance: &mut Lanes,
         rng: &mut Rng,
@@ -936,22 +961,24 @@ impl<'a> Integrator<'a> {
 
     /// Adjoint-driven roulette and splitting at a real scattering at `x`
     /// (coefficients `c`, weight `beta` before the direction's factor):
-    /// the path's expected light relative to `reference` (its start's)
-    /// picks how many copies go on (0 = ended; survivors' weights are
-    /// divided by their chance, copies share the weight), returned with the
-    /// copies' reference. Where the cap leaves each copy at or above the
-    /// splitting threshold, their reference rises to their expected light,
-    /// so a start with next to no light (where the guide's table fades to
-    /// zero) cannot make every later vertex split again.
+    /// the path's expected light relative to its window's reference (its
+    /// start's) picks how many copies go on (0 = ended; survivors' weights
+    /// are divided by their chance, copies share the weight), returned with
+    /// the copies' window. Where a cap ([`MAX_SPLIT`] per vertex,
+    /// [`MAX_COPIES`] per start) leaves each copy at or above the splitting
+    /// threshold, their reference rises to their expected light, so a start
+    /// with next to no light (where the guide's table fades to zero, or
+    /// deep in a thick haze) cannot make every later vertex split again.
     fn weight_window(
         &self,
         x: DVec3,
         c: &super::medium::Coefficients,
         beta: &mut Lanes,
-        (depth, split, reference): (u32, f64, f64),
+        (depth, split, window): (u32, f64, Window),
         lanes: &SpectralLanes,
         rng: &mut Rng,
-    ) -> Option<(usize, f64)> {
+    ) -> Option<(usize, Window)> {
+        let Window { reference, copies } = window;
         let here = self.importance(x)?;
         let weight = (0..lanes.active)
             .map(|j| beta[j] * c.scattering(j))
@@ -963,24 +990,29 @@ impl<'a> Integrator<'a> {
                 survive = survive.min(0.9);
             }
             if rng.uniform() >= survive {
-                return Some((0, reference));
+                return Some((0, window));
             }
             for b in beta.iter_mut() {
                 *b /= survive;
             }
-            return Some((1, reference));
+            return Some((1, window));
         }
         if expected >= SPLIT_WEIGHT {
-            let copies = (expected.floor() as usize).min(MAX_SPLIT);
-            let each = expected / copies as f64;
+            let room = (MAX_COPIES / copies).max(1);
+            let split_into = (expected.floor() as usize).min(MAX_SPLIT).min(room);
+            let each = expected / split_into as f64;
             let lifted = if each >= SPLIT_WEIGHT {
                 reference * each
             } else {
                 reference
             };
-            return Some((copies, lifted));
+            let window = Window {
+                reference: lifted,
+                copies: copies * split_into,
+            };
+            return Some((split_into, window));
         }
-        Some((1, reference))
+        Some((1, window))
     }
 
     /// One segment of [`Self::trace_sunlit`] from `origin` along `dir` after
@@ -1888,32 +1920,58 @@ mod tests {
         let mut rng = Rng::new(1, 2);
         // Weights for a given expected light relative to a reference of 1.
         let beta_for = |expected: f64| [expected / (sigma * here); LANES];
-        let window = |beta: &mut Lanes, reference: f64, rng: &mut Rng| {
-            integrator
-                .weight_window(x, &c, beta, (3, 1.0, reference), &lanes, rng)
-                .unwrap()
+        let start = |reference: f64| Window {
+            reference,
+            copies: 1,
+        };
+        let window = |beta: &mut Lanes, window: Window, rng: &mut Rng| {
+            let (copies, window) = integrator
+                .weight_window(x, &c, beta, (3, 1.0, window), &lanes, rng)
+                .unwrap();
+            (copies, window.reference, window.copies)
         };
         // Inside the window: one copy, nothing changes.
         let mut beta = beta_for(1.0);
-        assert_eq!(window(&mut beta, 1.0, &mut rng), (1, 1.0));
+        assert_eq!(window(&mut beta, start(1.0), &mut rng), (1, 1.0, 1));
         assert_eq!(beta, beta_for(1.0));
         // 3× the start's light: three copies, same reference.
-        assert_eq!(window(&mut beta_for(3.0), 1.0, &mut rng), (3, 1.0));
+        assert_eq!(
+            window(&mut beta_for(3.0), start(1.0), &mut rng),
+            (3, 1.0, 3)
+        );
         // A start with next to no light: the cap holds, and the copies'
         // reference rises to their expected light.
-        let (copies, reference) = window(&mut beta_for(1.0), 1e-30, &mut rng);
-        assert_eq!(copies, MAX_SPLIT);
+        let (copies, reference, lineage) = window(&mut beta_for(1.0), start(1e-30), &mut rng);
+        assert_eq!((copies, lineage), (MAX_SPLIT, MAX_SPLIT));
         let each = 1e30 / MAX_SPLIT as f64;
         assert!((reference / (each * 1e-30) - 1.0).abs() < 1e-9);
-        let (again, _) = window(&mut beta_for(1.0 / MAX_SPLIT as f64), reference, &mut rng);
+        let lifted = Window {
+            reference,
+            copies: lineage,
+        };
+        let (again, _, _) = window(&mut beta_for(1.0 / MAX_SPLIT as f64), lifted, &mut rng);
         assert!(again <= 1, "copies split again: {again}");
+        // A path already one of MAX_COPIES / 2 copies of its start splits
+        // into 2 at most, however bright; one of MAX_COPIES, not at all,
+        // and its reference rises to its expected light.
+        let many = |copies: usize| Window {
+            reference: 1.0,
+            copies,
+        };
+        let (copies, reference, lineage) =
+            window(&mut beta_for(100.0), many(MAX_COPIES / 2), &mut rng);
+        assert_eq!((copies, lineage), (2, MAX_COPIES));
+        assert!((reference - 50.0).abs() < 1e-9);
+        let (copies, reference, lineage) = window(&mut beta_for(100.0), many(MAX_COPIES), &mut rng);
+        assert_eq!((copies, lineage), (1, MAX_COPIES));
+        assert!((reference - 100.0).abs() < 1e-9);
         // A tenth of the start's light: survives 40 % of the time, with
         // its weight divided by 0.4.
         let trials = 20_000;
         let mut survived = 0;
         for _ in 0..trials {
             let mut beta = beta_for(0.1);
-            let (copies, _) = window(&mut beta, 1.0, &mut rng);
+            let (copies, _, _) = window(&mut beta, start(1.0), &mut rng);
             if copies == 1 {
                 survived += 1;
                 assert!((beta[0] / beta_for(0.1)[0] - 2.5).abs() < 1e-9);
