@@ -279,6 +279,29 @@ impl SceneArgs {
         Ok(scene)
     }
 
+    /// The camera flags given that `kind` does not use (see
+    /// [`crate::render::camera`]): an equirect map stays geographic (no
+    /// yaw, pitch, roll or field of view), a fisheye looks at the zenith
+    /// (no pitch or roll).
+    pub fn ignored_camera_flags(&self, kind: CameraKind) -> Vec<&'static str> {
+        let given = [
+            ("--yaw", self.yaw.is_some()),
+            ("--pitch", self.pitch.is_some()),
+            ("--roll", self.roll.is_some()),
+            ("--fov", self.fov.is_some()),
+        ];
+        let unused: &[&str] = match kind {
+            CameraKind::Equirect => &["--yaw", "--pitch", "--roll", "--fov"],
+            CameraKind::Fisheye => &["--pitch", "--roll"],
+            CameraKind::Perspective => &[],
+        };
+        given
+            .into_iter()
+            .filter(|&(flag, given)| given && unused.contains(&flag))
+            .map(|(flag, _)| flag)
+            .collect()
+    }
+
     /// A rayon pool with the requested number of threads.
     pub fn thread_pool(&self) -> Result<rayon::ThreadPool, SceneError> {
         let threads = match self.threads {
@@ -430,6 +453,14 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let scene = args.build()?;
             check_output_path(&output)?;
             let pool = args.thread_pool()?;
+            let ignored = args.ignored_camera_flags(scene.camera.kind);
+            if !ignored.is_empty() {
+                eprintln!(
+                    "skyrender: note: the {} camera does not use {} (README, \"Conventions\")",
+                    scene.camera.kind.name(),
+                    ignored.join(", ")
+                );
+            }
             let bar = if std::io::stderr().is_terminal() {
                 let bar = indicatif::ProgressBar::new(u64::from(scene.render.spp));
                 bar.set_style(

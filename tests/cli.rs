@@ -448,6 +448,37 @@ fn an_observer_exactly_at_the_top_of_the_atmosphere_renders() {
 }
 
 #[test]
+fn camera_flags_a_camera_does_not_use_are_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let o = out.to_str().unwrap();
+    let small = ["--width", "8", "--height", "4", "--spp", "1", "-o", o];
+    let note = |args: &[&str]| {
+        let all: Vec<&str> = ["render"]
+            .iter()
+            .chain(args)
+            .chain(&small)
+            .copied()
+            .collect();
+        let run = skyrender(&all);
+        assert!(run.status.success(), "{all:?}: {}", stderr(&run));
+        stderr(&run)
+            .lines()
+            .find(|l| l.contains("note:"))
+            .map(str::to_owned)
+    };
+    let fisheye = note(&["--camera", "fisheye", "--pitch", "-90", "--yaw", "30"]).unwrap();
+    assert!(
+        fisheye.contains("fisheye camera does not use --pitch"),
+        "{fisheye}"
+    );
+    assert!(!fisheye.contains("--yaw"), "{fisheye}");
+    let equirect = note(&["--camera", "equirect", "--roll", "5", "--fov", "60"]).unwrap();
+    assert!(equirect.contains("--roll, --fov"), "{equirect}");
+    assert_eq!(note(&["--camera", "perspective", "--pitch", "10"]), None);
+}
+
+#[test]
 fn switching_a_fisheye_scene_to_perspective_takes_the_perspective_default() {
     let dir = tempfile::tempdir().unwrap();
     let scene = dir.path().join("fisheye.toml");
