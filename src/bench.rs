@@ -43,7 +43,7 @@ use crate::scene::{CameraKind, Scene};
 pub struct BenchArgs {
     /// Time budget per scene, seconds, split between two independent
     /// renders (default 10; 0.4 with --quick).
-    #[arg(long, allow_hyphen_values = true, value_name = "SECONDS")]
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
     pub budget: Option<f64>,
     /// Comma-separated scenes: midday, sunset, twilight, space (256×128
     /// equirect) and preview (the app's default preview) by default; any
@@ -51,7 +51,7 @@ pub struct BenchArgs {
     #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
     pub scenes: Option<Vec<String>>,
     /// Worker threads (default: all cores).
-    #[arg(long, allow_hyphen_values = true, value_name = "N")]
+    #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub threads: Option<usize>,
     /// Print JSON (progress goes to stderr).
     #[arg(long)]
@@ -76,7 +76,7 @@ pub struct BenchArgs {
     /// Seed of render A; B takes the next (default 0x5eed000a). With the
     /// same seeds two runs differ only by their pass counts: another seed
     /// repeats a measurement independently.
-    #[arg(long, allow_hyphen_values = true, value_name = "S")]
+    #[arg(long, allow_negative_numbers = true, value_name = "S")]
     pub seed: Option<u64>,
 }
 
@@ -331,7 +331,10 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
-    for (k, seed) in [seed, seed + 1].into_iter().enumerate() {
+    let second = seed
+        .checked_add(1)
+        .ok_or_else(|| format!("seed {seed}: B's seed (seed + 1) overflows"))?;
+    for (k, seed) in [seed, second].into_iter().enumerate() {
         let mut s = scene.clone();
         s.render.seed = seed;
         let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;

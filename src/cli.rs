@@ -156,7 +156,7 @@ pub struct SceneArgs {
     /// vertical plane (see `[render] mirror_symmetry`).
     #[arg(long)]
     pub no_mirror: bool,
-    #[arg(long, allow_hyphen_values = true, value_name = "S")]
+    #[arg(long, allow_negative_numbers = true, value_name = "S")]
     pub seed: Option<u64>,
     #[arg(long)]
     pub no_aerosols: bool,

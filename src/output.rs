@@ -374,11 +374,8 @@ fn checked_size(path: &Path, image: &RgbImage) -> Result<(usize, usize), OutputE
     })
 }
 
-/// Writes via `write` into a temporary file beside `path`, then renames it over `path`.
-///
-/// On error the temporary file is deleted (when the `NamedTempFile` is dropped) and `path`
-/// is left as it was. A symbolic link at `path` stays a link: the file it points to is
-/// the one replaced. A replaced file keeps its permissions.
+/// Writes via `write` into a temporary file beside `path`, then renames it over `path`
+/// ([`replace_file`]).
 fn write_atomically(
     path: &Path,
     write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), OutputError>,
@@ -387,40 +384,41 @@ fn write_atomically(
         path: path.to_path_buf(),
         source,
     };
-    let target = link_target(path);
-    let directory = parent_dir(&target);
     // Report a missing directory plainly, rather than via the temp file's name.
-    std::fs::metadata(directory).map_err(io_error)?;
-    let mut temp = temp_file_in(directory).map_err(io_error)?;
+    std::fs::metadata(parent_dir(path)).map_err(io_error)?;
+    replace_file(path, io_error, write)
+}
 
+/// Replaces the file at `path` with what `write` writes, atomically: into a
+/// hidden temporary file beside it ([`temp_file_in`]), synced, then renamed
+/// over it. On error the temporary file is deleted (when the `NamedTempFile`
+/// is dropped) and `path` is left as it was; `io_error` turns I/O errors
+/// into the caller's. A regular file replaced keeps its permissions (Unix);
+/// a symbolic link at `path` is replaced by the new file, as `sed -i` and
+/// most atomic writers do, and what it pointed to is left alone.
+pub fn replace_file<E>(
+    path: &Path,
+    io_error: impl Fn(io::Error) -> E,
+    write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), E>,
+) -> Result<(), E> {
+    let mut temp = temp_file_in(parent_dir(path)).map_err(&io_error)?;
     {
         let mut writer = BufWriter::new(temp.as_file_mut());
         write(&mut writer)?;
-        writer.flush().map_err(io_error)?;
+        writer.flush().map_err(&io_error)?;
     }
-    temp.as_file().sync_all().map_err(io_error)?;
-    if let Ok(existing) = std::fs::metadata(&target) {
-        temp.as_file()
-            .set_permissions(existing.permissions())
-            .map_err(io_error)?;
-    }
-    temp.persist(&target)
-        .map_err(|error| io_error(error.error))?;
-    Ok(())
-}
-
-/// The file `path` names once symbolic links are followed (at most 40, as
-/// Linux does; a dangling link names the file it points to, to be created).
-/// A path that is not a link is its own target.
-fn link_target(path: &Path) -> PathBuf {
-    let mut target = path.to_path_buf();
-    for _ in 0..40 {
-        match std::fs::read_link(&target) {
-            Ok(link) => target = parent_dir(&target).join(link),
-            Err(_) => break,
+    temp.as_file().sync_all().map_err(&io_error)?;
+    // After the writes: on Windows a read-only copy could not be written.
+    #[cfg(unix)]
+    if let Ok(existing) = std::fs::symlink_metadata(path) {
+        if existing.is_file() {
+            temp.as_file()
+                .set_permissions(existing.permissions())
+                .map_err(&io_error)?;
         }
     }
-    target
+    temp.persist(path).map_err(|error| io_error(error.error))?;
+    Ok(())
 }
 
 /// Middle grey: the display value the log-average luminance is mapped to (Reinhard's key).
@@ -444,34 +442,51 @@ pub fn temp_file_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
     builder.tempfile_in(dir)
 }
 
-/// Longest file name most file systems take (`NAME_MAX` on Linux, macOS
-/// and Windows' NTFS), bytes.
-const MAX_FILE_NAME_BYTES: usize = 255;
+/// Longest file name most file systems take (`NAME_MAX`: bytes on Linux
+/// and macOS; UTF-16 units on Windows' NTFS).
+const MAX_FILE_NAME: usize = 255;
+
+/// The unit of [`MAX_FILE_NAME`].
+const FILE_NAME_UNIT: &str = if cfg!(windows) {
+    "UTF-16 units"
+} else {
+    "bytes"
+};
+
+/// Length of a file name in the units [`MAX_FILE_NAME`] counts.
+fn file_name_length(name: &std::ffi::OsStr) -> usize {
+    #[cfg(windows)]
+    return std::os::windows::ffi::OsStrExt::encode_wide(name).count();
+    #[cfg(not(windows))]
+    name.len()
+}
 
 /// Checks, before any work, that a file can be written atomically at
 /// `path`: it names a file (not a directory, no trailing separator, a name
-/// of at most 255 bytes) and a temporary file can be created beside it.
+/// of at most 255 bytes, or UTF-16 units on Windows) and a temporary file can be created beside it.
 /// The error names the path and the reason.
 pub fn check_writable(path: &Path) -> Result<(), String> {
     let fail = |reason: String| Err(format!("cannot write '{}': {reason}", path.display()));
-    let text = path.as_os_str().to_string_lossy();
     if path.is_dir() {
         return fail("it is a directory".into());
     }
-    if text.ends_with(std::path::is_separator) {
+    if path
+        .as_os_str()
+        .to_string_lossy()
+        .ends_with(std::path::is_separator)
+    {
         return fail("it ends with a separator, so it names a directory".into());
     }
-    let target = link_target(path);
-    let Some(name) = target.file_name() else {
+    let Some(name) = path.file_name() else {
         return fail("it names no file".into());
     };
-    if name.len() > MAX_FILE_NAME_BYTES {
+    let length = file_name_length(name);
+    if length > MAX_FILE_NAME {
         return fail(format!(
-            "the file name is {} bytes long (at most {MAX_FILE_NAME_BYTES})",
-            name.len()
+            "the file name is {length} {FILE_NAME_UNIT} long (at most {MAX_FILE_NAME})"
         ));
     }
-    let directory = parent_dir(&target);
+    let directory = parent_dir(path);
     if let Err(e) = std::fs::metadata(directory) {
         return fail(format!("directory '{}': {e}", directory.display()));
     }

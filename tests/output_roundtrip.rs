@@ -282,41 +282,31 @@ fn written_files_get_default_permissions() {
 
 #[cfg(unix)]
 #[test]
-fn overwriting_keeps_the_files_permissions_and_links() {
+fn overwriting_keeps_the_files_permissions_and_replaces_links() {
     use std::os::unix::fs::PermissionsExt as _;
     let dir = tempfile::tempdir().unwrap();
     let mode = |path: &Path| fs::metadata(path).unwrap().permissions().mode() & 0o777;
-    // A private file stays private when a render replaces it.
+    // A replaced file keeps its mode (an execute bit never comes from the
+    // default 0o666 minus the umask).
     let path = dir.path().join("sky.exr");
     fs::write(&path, b"old").unwrap();
-    fs::set_permissions(&path, fs::Permissions::from_mode(0o600)).unwrap();
+    fs::set_permissions(&path, fs::Permissions::from_mode(0o744)).unwrap();
     write_exr(&path, &test_image(2, 2), &[]).unwrap();
-    assert_eq!(mode(&path), 0o600);
+    assert_eq!(mode(&path), 0o744);
     assert_ne!(fs::read(&path).unwrap(), b"old");
-    // A link stays a link; the file it points to (relative to the link's
-    // directory) is the one replaced, and a dangling link's target is created.
-    fs::create_dir(dir.path().join("renders")).unwrap();
-    let real = dir.path().join("renders").join("real.png");
+    // A link is replaced by the new file, as `sed -i` does; the file it
+    // pointed to is left as it was.
+    let real = dir.path().join("real.png");
     fs::write(&real, b"old").unwrap();
     let link = dir.path().join("latest.png");
-    std::os::unix::fs::symlink("renders/real.png", &link).unwrap();
+    std::os::unix::fs::symlink("real.png", &link).unwrap();
     write_png(&link, &test_image(2, 2), None).unwrap();
-    assert!(fs::symlink_metadata(&link)
-        .unwrap()
-        .file_type()
-        .is_symlink());
-    assert_eq!(&fs::read(&real).unwrap()[..4], b"\x89PNG");
-    let dangling = dir.path().join("next.exr");
-    std::os::unix::fs::symlink("renders/next.exr", &dangling).unwrap();
-    write_exr(&dangling, &test_image(2, 2), &[]).unwrap();
-    assert!(fs::symlink_metadata(&dangling)
-        .unwrap()
-        .file_type()
-        .is_symlink());
-    assert!(dir.path().join("renders").join("next.exr").is_file());
+    assert!(fs::symlink_metadata(&link).unwrap().is_file());
+    assert_eq!(&fs::read(&link).unwrap()[..4], b"\x89PNG");
+    assert_eq!(fs::read(&real).unwrap(), b"old");
     assert_eq!(
-        dir_entries(&dir.path().join("renders")),
-        ["next.exr", "real.png"]
+        dir_entries(dir.path()),
+        ["latest.png", "real.png", "sky.exr"]
     );
 }
 
@@ -336,7 +326,10 @@ fn paths_that_cannot_name_the_output_are_refused_before_any_work() {
     refused(dir.path(), "is a directory");
     let long = dir.path().join(format!("{}.exr", "a".repeat(300)));
     refused(&long, "304 bytes long (at most 255)");
-    refused(&dir.path().join("missing").join("sky.exr"), "missing");
+    refused(
+        &dir.path().join("missing").join("sky.exr"),
+        &format!("directory '{}'", dir.path().join("missing").display()),
+    );
     assert!(check_writable(&dir.path().join(format!("{}.exr", "a".repeat(251)))).is_ok());
     assert!(dir_entries(dir.path()).is_empty());
 }

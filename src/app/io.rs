@@ -5,7 +5,7 @@
 //! temporary file in the target directory, renamed into place), so a
 //! failure or a cancel never leaves a half-written file behind.
 
-use std::io::{BufWriter, Write as _};
+use std::io::Write as _;
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::Arc;
@@ -15,7 +15,7 @@ use std::time::{Duration, Instant};
 use image::ImageEncoder as _;
 
 use super::state::{DisplaySettings, ToneCurve};
-use crate::output::{self, check_writable, parent_dir, temp_file_in, OutputFormat};
+use crate::output::{self, check_writable, replace_file, OutputFormat};
 use crate::render::service::Frame;
 use crate::scene::Scene;
 
@@ -186,17 +186,15 @@ pub fn write_png_atomic(
     if path.is_dir() {
         return Err(fail(&"it is a directory"));
     }
-    let temp = temp_file_in(parent_dir(path)).map_err(|e| fail(&e))?;
-    {
-        let mut writer = BufWriter::new(temp.as_file());
-        image::codecs::png::PngEncoder::new(&mut writer)
-            .write_image(bytes, width, height, color)
-            .map_err(|e| fail(&e))?;
-        writer.flush().map_err(|e| fail(&e))?;
-    }
-    temp.as_file().sync_all().map_err(|e| fail(&e))?;
-    temp.persist(path).map_err(|e| fail(&e.error))?;
-    Ok(())
+    replace_file(
+        path,
+        |e| fail(&e),
+        |writer| {
+            image::codecs::png::PngEncoder::new(writer)
+                .write_image(bytes, width, height, color)
+                .map_err(|e| fail(&e))
+        },
+    )
 }
 
 /// Write `scene` as TOML, atomically.
@@ -205,12 +203,15 @@ pub fn save_scene(path: &Path, scene: &Scene) -> Result<(), String> {
     if path.is_dir() {
         return Err(fail(&"it is a directory"));
     }
-    let mut temp = temp_file_in(parent_dir(path)).map_err(|e| fail(&e))?;
-    temp.write_all(scene.to_toml().as_bytes())
-        .map_err(|e| fail(&e))?;
-    temp.as_file().sync_all().map_err(|e| fail(&e))?;
-    temp.persist(path).map_err(|e| fail(&e.error))?;
-    Ok(())
+    replace_file(
+        path,
+        |e| fail(&e),
+        |writer| {
+            writer
+                .write_all(scene.to_toml().as_bytes())
+                .map_err(|e| fail(&e))
+        },
+    )
 }
 
 /// Read and validate a scene TOML.

@@ -37,6 +37,9 @@ pub const EXPOSURE_RANGE: (f32, f32) = (-25.0, 10.0);
 pub const MAX_TARGET_SPP: u32 = 1 << 16;
 /// Largest export sample count.
 pub const MAX_EXPORT_SPP: u32 = 1 << 16;
+/// Widest panorama export: 16384 × 8192, the most pixels a scene may have
+/// ([`crate::scene::MAX_PIXELS`]).
+pub const MAX_EXPORT_WIDTH: u32 = 16_384;
 /// Export panorama sizes offered (width; the height is half of it).
 pub const EXPORT_WIDTHS: [u32; 5] = [512, 1024, 2048, 4096, 8192];
 
@@ -489,15 +492,15 @@ impl AppState {
     pub fn export_scene(&self) -> Scene {
         let mut scene = self.scene.clone();
         scene.camera.kind = CameraKind::Equirect;
-        scene.render.width = self.export.width.clamp(2, 65_536);
+        scene.render.width = self.export.width.clamp(2, MAX_EXPORT_WIDTH);
         scene.render.height = self.export.height();
         scene.render.spp = self.export.spp.clamp(1, MAX_EXPORT_SPP);
         scene
     }
 
-    /// Set the exported panorama's width (height = width / 2), 2–65536.
+    /// Set the exported panorama's width (height = width / 2), 2–16384.
     pub fn set_export_width(&mut self, width: u32) {
-        self.export.width = width.clamp(2, 65_536);
+        self.export.width = width.clamp(2, MAX_EXPORT_WIDTH);
     }
 
     /// Set the export sample count, 1–[`MAX_EXPORT_SPP`].

@@ -58,12 +58,13 @@
 //! too (`sky_guide_sunlit`).
 //!
 //! **Roulette and splitting by importance** (`splitting`, on with the sun
-//! below the horizon): at a real scattering of a low-sun path, the path's
-//! expected light is its weight times the guide's mean once-scattered
-//! radiance at the point ([`SkyGuide::skylight`]); relative to that at the
-//! path's start it decides roulette (below a quarter) or how many copies go
-//! on, each with its own direction (Vorba and Křivánek 2016, adjoint-driven
-//! Russian roulette and splitting, with the guide's table as the adjoint).
+//! below the horizon and roulette on): at a real scattering of a low-sun
+//! path, the path's expected light is its weight times the guide's mean
+//! once-scattered radiance at the point ([`SkyGuide::skylight`]); relative
+//! to that at the path's start it decides roulette (below a quarter) or how
+//! many copies go on (at most 4 at a vertex, 256 from one start), each with
+//! its own direction (Vorba and Křivánek 2016, adjoint-driven Russian
+//! roulette and splitting, with the guide's table as the adjoint).
 //! At twilight most of the variance lies in orders ≥ 3 (90 % of it for 32 %
 //! of the light, `BENCHMARKS.md`): paths wandering in the shadow that rarely
 //! reach the brighter air high up or toward the sun, and there carry large
@@ -197,7 +198,8 @@ pub struct IntegratorOptions {
     /// radiance at the point ([`SkyGuide::skylight`]) — is several times
     /// that at its start goes on as several copies, one below a quarter of
     /// it plays roulette. Needs `russian_roulette`. Unset (the default):
-    /// on with the sun lower than [`SPLITTING_ELEVATION_DEG`] (see
+    /// on with the sun lower than [`SPLITTING_ELEVATION_DEG`] and
+    /// `russian_roulette` on (see
     /// [`Self::resolved`]); an integrator built directly reads unset as off.
     pub splitting: Option<bool>,
     /// The once-scattered light as a control variate ([`super::control`]):
@@ -408,8 +410,9 @@ const MAX_SPLIT: usize = 4;
 /// the copies made along any copy's line). Without it, a thick haze below
 /// the sunlit air, whose importance grows by orders of magnitude from the
 /// ground up, split each start into ~20 000 copies (aerosol amount 100 at
-/// −4°: 60 000 vertices per camera path against 13 in the preset); at
-/// the presets the cap is never reached (`BENCHMARKS.md`, session 19).
+/// −4°: up to 60 000 vertices per camera path against 13 in the preset);
+/// in the twilight preset it binds for about 1 camera path in 100, and the
+/// noise is unchanged (`BENCHMARKS.md`, session 19).
 const MAX_COPIES: usize = 256;
 /// Largest [`IntegratorOptions::forced_collision_depth`] accepted (the
 /// depth past which roulette caps survival at 0.9).
@@ -431,8 +434,9 @@ struct Window {
     /// Expected light at the path's start (or where a cap last lifted it),
     /// per unit weight.
     reference: f64,
-    /// How many copies of its start this path is one of (at most
-    /// [`MAX_COPIES`]).
+    /// The product of the copy counts along this path's line since its
+    /// start — the inverse of its share of the start's weight — at most
+    /// [`MAX_COPIES`].
     copies: usize,
 }
 
@@ -1896,6 +1900,12 @@ mod tests {
             control(true).resolved(45.0).sun_lobe,
             Some(CONTROL_SUN_LOBE)
         );
+        // Unset splitting follows roulette: without it, none below the horizon.
+        let no_roulette = IntegratorOptions {
+            russian_roulette: false,
+            ..IntegratorOptions::default()
+        };
+        assert_eq!(no_roulette.resolved(-4.0).splitting, Some(false));
     }
 
     #[test]
