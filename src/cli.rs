@@ -574,6 +574,8 @@ pub fn run(command: Command) -> Result<(), CliError> {
             json,
         } => {
             let scene = args.build()?;
+            // Nothing here runs in parallel, but a bad --threads is still bad.
+            args.thread_pool()?;
             let altitude_m = scene.observer.altitude_m;
             parse_wavelengths(Some(wavelength), None)?;
             let atmosphere = Atmosphere::new(scene.atmosphere.clone());

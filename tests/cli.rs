@@ -282,6 +282,7 @@ fn bad_inputs_get_one_line_errors_and_no_file() {
         None,
     );
     assert_rejected(&["atmosphere", "--altitude", "-10"], "altitude", None);
+    assert_rejected(&["atmosphere", "--threads", "0"], "threads", None);
     assert_rejected(&["radiance", "--view-azimuth", "0"], "--view-zenith", None);
     assert_eq!(
         std::fs::read_dir(dir.path()).unwrap().count(),
