@@ -302,12 +302,15 @@ impl SceneArgs {
             .collect()
     }
 
+    /// The requested number of worker threads (0: all cores), checked.
+    pub fn threads(&self) -> Result<usize, SceneError> {
+        self.threads
+            .map_or(Ok(0), |n| count("threads", n, 1024).map(|n| n as usize))
+    }
+
     /// A rayon pool with the requested number of threads.
     pub fn thread_pool(&self) -> Result<rayon::ThreadPool, SceneError> {
-        let threads = match self.threads {
-            Some(n) => count("threads", n, 1024)? as usize,
-            None => 0,
-        };
+        let threads = self.threads()?;
         rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
             .build()
@@ -575,7 +578,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
         } => {
             let scene = args.build()?;
             // Nothing here runs in parallel, but a bad --threads is still bad.
-            args.thread_pool()?;
+            args.threads()?;
             let altitude_m = scene.observer.altitude_m;
             parse_wavelengths(Some(wavelength), None)?;
             let atmosphere = Atmosphere::new(scene.atmosphere.clone());

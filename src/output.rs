@@ -384,8 +384,6 @@ fn write_atomically(
         path: path.to_path_buf(),
         source,
     };
-    // Report a missing directory plainly, rather than via the temp file's name.
-    std::fs::metadata(parent_dir(path)).map_err(io_error)?;
     replace_file(path, io_error, write)
 }
 
@@ -401,14 +399,17 @@ pub fn replace_file<E>(
     io_error: impl Fn(io::Error) -> E,
     write: impl FnOnce(&mut BufWriter<&mut File>) -> Result<(), E>,
 ) -> Result<(), E> {
-    let mut temp = temp_file_in(parent_dir(path)).map_err(&io_error)?;
+    let directory = parent_dir(path);
+    // Report a missing directory plainly, rather than via the temp file's name.
+    std::fs::metadata(directory).map_err(&io_error)?;
+    let mut temp = temp_file_in(directory).map_err(&io_error)?;
     {
         let mut writer = BufWriter::new(temp.as_file_mut());
         write(&mut writer)?;
         writer.flush().map_err(&io_error)?;
     }
-    temp.as_file().sync_all().map_err(&io_error)?;
-    // After the writes: on Windows a read-only copy could not be written.
+    // Unix only: an open file's mode does not stop its writes there, but a
+    // read-only file on Windows could not be renamed over its target.
     #[cfg(unix)]
     if let Ok(existing) = std::fs::symlink_metadata(path) {
         if existing.is_file() {
@@ -417,6 +418,7 @@ pub fn replace_file<E>(
                 .map_err(&io_error)?;
         }
     }
+    temp.as_file().sync_all().map_err(&io_error)?;
     temp.persist(path).map_err(|error| io_error(error.error))?;
     Ok(())
 }

@@ -285,13 +285,30 @@ mod tests {
         save_view(&exr, &frame, &scene, &display).unwrap();
         assert!(std::fs::metadata(&exr).unwrap().len() > 0);
         assert!(save_view(&dir.path().join("v.tif"), &frame, &scene, &display).is_err());
-        assert!(save_view(&dir.path().join("no/v.png"), &frame, &scene, &display).is_err());
+        // A missing folder is named plainly, not through the temporary file.
+        for missing in ["no/v.png", "no/v.exr"] {
+            let e = save_view(&dir.path().join(missing), &frame, &scene, &display).unwrap_err();
+            assert!(!e.contains(".skyrender-"), "{e}");
+        }
+        let e = save_scene(&dir.path().join("no/s.toml"), &Scene::default()).unwrap_err();
+        assert!(e.contains("s.toml") && !e.contains(".skyrender-"), "{e}");
 
         let toml = dir.path().join("s.toml");
         let mut custom = Scene::default();
         custom.sun.elevation_deg = 12.5;
         save_scene(&toml, &custom).unwrap();
         assert_eq!(load_scene(&toml).unwrap(), custom);
+        // Saving over a file keeps its permissions.
+        #[cfg(unix)]
+        {
+            use std::os::unix::fs::PermissionsExt as _;
+            let mode = |p: &Path| std::fs::metadata(p).unwrap().permissions().mode() & 0o777;
+            std::fs::set_permissions(&toml, std::fs::Permissions::from_mode(0o744)).unwrap();
+            save_scene(&toml, &custom).unwrap();
+            std::fs::set_permissions(&png, std::fs::Permissions::from_mode(0o744)).unwrap();
+            save_view(&png, &frame, &scene, &display).unwrap();
+            assert_eq!((mode(&toml), mode(&png)), (0o744, 0o744));
+        }
         assert!(load_scene(&dir.path().join("none.toml")).is_err());
         assert!(save_scene(dir.path(), &custom).is_err());
         let names: Vec<_> = std::fs::read_dir(dir.path())

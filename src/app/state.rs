@@ -492,8 +492,9 @@ impl AppState {
     pub fn export_scene(&self) -> Scene {
         let mut scene = self.scene.clone();
         scene.camera.kind = CameraKind::Equirect;
-        scene.render.width = self.export.width.clamp(2, MAX_EXPORT_WIDTH);
-        scene.render.height = self.export.height();
+        let width = self.export.width.clamp(2, MAX_EXPORT_WIDTH);
+        scene.render.width = width;
+        scene.render.height = width / 2;
         scene.render.spp = self.export.spp.clamp(1, MAX_EXPORT_SPP);
         scene
     }
