@@ -602,6 +602,12 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("control_variate=true", |s| {
             s.render.integrator.control_variate = Some(true);
         }),
+        ("circle_splatting=false", |s| {
+            s.render.integrator.circle_splatting = Some(false);
+        }),
+        ("circle_splatting=true", |s| {
+            s.render.integrator.circle_splatting = Some(true);
+        }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
         }),

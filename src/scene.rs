@@ -397,6 +397,14 @@ impl Scene {
             0,
             crate::render::integrator::MAX_FORCED_COLLISION_DEPTH as usize,
         )?;
+        if i.circle_splatting == Some(true) && (i.camera_samples == 0 || !i.next_event_estimation) {
+            // The camera paths' share of the light is what their
+            // next-event points estimate; without them nothing would.
+            return Err(SceneError::new(
+                "circle_splatting",
+                "needs camera_samples ≥ 1 and next_event_estimation = true",
+            ));
+        }
         if i.splitting == Some(true) && !i.russian_roulette {
             // Splitting's other half is roulette (dim paths end); without
             // it the option would silently do nothing.
@@ -420,6 +428,22 @@ mod tests {
             let again = Scene::from_toml(&scene.to_toml()).unwrap();
             assert_eq!(scene, again, "{name}");
         }
+    }
+
+    #[test]
+    fn circle_splatting_needs_the_camera_rays_next_event_points() {
+        for toml in [
+            "[render.integrator]\ncircle_splatting = true\ncamera_samples = 0",
+            "[render.integrator]\ncircle_splatting = true\nnext_event_estimation = false",
+        ] {
+            let e = Scene::from_toml(toml).unwrap_err();
+            assert_eq!(e.parameter, "circle_splatting", "{toml}");
+            assert!(e.to_string().contains("camera_samples"), "{e}");
+        }
+        // Off, or unset, either is fine.
+        let ok = "[render.integrator]\ncircle_splatting = false\ncamera_samples = 0";
+        assert!(Scene::from_toml(ok).is_ok());
+        assert!(Scene::from_toml("[render.integrator]\ncamera_samples = 0").is_ok());
     }
 
     #[test]

@@ -14,6 +14,8 @@
 //! * **Perspective** (rectilinear): view centre at (`yaw_deg`, `pitch_deg`),
 //!   horizontal field of view `fov_deg`, `roll_deg` about the view axis.
 
+use std::f64::consts::PI;
+
 use glam::DVec3;
 
 use super::film::{Mirror, MirrorAxis};
@@ -66,6 +68,11 @@ impl Camera {
             up,
             forward,
         }
+    }
+
+    /// Image width and height, pixels.
+    pub fn size(&self) -> (f64, f64) {
+        (self.width, self.height)
     }
 
     /// View direction through image position (`px`, `py`) in pixels from the
@@ -158,6 +165,51 @@ impl Camera {
         }
     }
 
+    /// Image area per solid angle at direction `dir` (unit), pixels² sr⁻¹:
+    /// a pixel's value is the mean over its square of the radiance seen
+    /// through each point, so light arriving from a solid angle dω around
+    /// `dir` weighs `pixels_per_sr(dir)` dω in the pixel it falls on. 0 where
+    /// the camera does not see `dir`.
+    ///
+    /// * Equirect: px = W (φ/2π + ½), py = H (½ − el/π) and dω = cos el dφ
+    ///   del, so W H / (2π² cos el).
+    /// * Perspective: the plane one unit along the axis takes dω to 1/z³ of
+    ///   its area (z = cos of the angle off the axis), and one unit of it is
+    ///   W / (2 tan ½fov) pixels either way.
+    /// * Fisheye: radius r = θ / ½fov in half the smaller side, polar in the
+    ///   image (dA = r dr dα) and on the sphere (dω = sin θ dθ dα), so
+    ///   (s/2)² θ / (½fov² sin θ).
+    pub fn pixels_per_sr(&self, dir: DVec3) -> f64 {
+        match self.kind {
+            CameraKind::Equirect => {
+                let cos_el = (1.0 - dir.z * dir.z).max(0.0).sqrt();
+                self.width * self.height / (2.0 * PI * PI * cos_el)
+            }
+            CameraKind::Perspective => {
+                let z = dir.dot(self.forward);
+                if z <= 0.0 {
+                    return 0.0;
+                }
+                let unit = self.width / (2.0 * self.tan_half_fov);
+                unit * unit / (z * z * z)
+            }
+            CameraKind::Fisheye => {
+                let zenith = dir.z.clamp(-1.0, 1.0).acos();
+                if zenith > self.half_fov_rad {
+                    return 0.0;
+                }
+                let half_side = self.width.min(self.height) / 2.0;
+                // θ / sin θ → 1 at the zenith.
+                let ratio = if zenith > 1e-6 {
+                    zenith / zenith.sin()
+                } else {
+                    1.0
+                };
+                half_side * half_side * ratio / (self.half_fov_rad * self.half_fov_rad)
+            }
+        }
+    }
+
     /// Image position (pixels) where direction `dir` appears, if it does.
     /// Used to check the mappings and to mark the sun in the preview.
     pub fn project(&self, dir: DVec3) -> Option<(f64, f64)> {
@@ -216,6 +268,56 @@ mod tests {
             w,
             h,
         )
+    }
+
+    #[test]
+    fn pixel_area_per_solid_angle_matches_the_mappings() {
+        // The solid angle of a small square of image around (px, py), from
+        // `direction` by finite differences, against 1 / pixels_per_sr.
+        let cameras = [
+            camera(CameraKind::Equirect, 256, 128),
+            Camera::new(
+                &CameraParams {
+                    kind: CameraKind::Perspective,
+                    fov_deg: 70.0,
+                    yaw_deg: 30.0,
+                    pitch_deg: 20.0,
+                    roll_deg: 10.0,
+                },
+                160,
+                90,
+            ),
+            camera(CameraKind::Fisheye, 120, 100),
+        ];
+        let h = 1e-4;
+        for c in &cameras {
+            let mut rng = crate::rng::Rng::new(5, 0);
+            let mut checked = 0;
+            for _ in 0..200 {
+                let (px, py) = (rng.uniform() * c.width, rng.uniform() * c.height);
+                let Some(d) = c.direction(px, py) else {
+                    continue;
+                };
+                let (Some(dx), Some(dy)) = (c.direction(px + h, py), c.direction(px, py + h))
+                else {
+                    continue;
+                };
+                let solid_angle = (dx - d).cross(dy - d).length() / (h * h);
+                let expected = 1.0 / solid_angle;
+                let got = c.pixels_per_sr(d);
+                assert!(
+                    (got / expected - 1.0).abs() < 1e-3,
+                    "{:?} at ({px:.2}, {py:.2}): {got} against {expected}",
+                    c.kind
+                );
+                checked += 1;
+            }
+            assert!(checked > 100, "{:?}", c.kind);
+        }
+        // Outside the view: nothing.
+        let perspective = &cameras[1];
+        assert_eq!(perspective.pixels_per_sr(-perspective.forward), 0.0);
+        assert_eq!(cameras[2].pixels_per_sr(-DVec3::Z), 0.0);
     }
 
     #[test]

@@ -124,6 +124,18 @@ pub struct Film {
     pub discarded: u64,
     /// Pixels read together with their mirror images; `None`: each alone.
     pub(crate) mirror: Option<Mirror>,
+    /// Sums of the splats of [`super::circles`] (empty unless the renderer
+    /// splats): each pixel's light scattered more than once in the air, ×
+    /// the number of paths splatted.
+    pub(crate) splat_sum: Vec<[f32; 3]>,
+    /// Paths splatted so far (the splat sums' divisor).
+    pub(crate) splat_paths: u64,
+    /// With splatting, the draft pass's image, set aside when the first
+    /// full pass starts: the draft estimates every order along the camera
+    /// rays, the later passes' camera paths only what is not splatted, so
+    /// the two cannot share one mean. Rows show it until they hold a pass
+    /// of their own.
+    pub(crate) draft: Vec<[f32; 3]>,
 }
 
 impl Film {
@@ -138,6 +150,55 @@ impl Film {
             row_planned_passes: vec![0; height as usize],
             discarded: 0,
             mirror: None,
+            splat_sum: Vec::new(),
+            splat_paths: 0,
+            draft: Vec::new(),
+        }
+    }
+
+    /// The film with a layer for the splats of [`super::circles`].
+    #[must_use]
+    pub(crate) fn with_splats(mut self) -> Self {
+        self.splat_sum = vec![[0.0; 3]; self.xyz_sum.len()];
+        self
+    }
+
+    /// Whether the film has a splat layer.
+    pub(crate) fn splats(&self) -> bool {
+        !self.splat_sum.is_empty()
+    }
+
+    /// Adds one batch of splats from `paths` paths.
+    pub(crate) fn add_splats(&mut self, splats: &[super::circles::Splat], paths: u64) {
+        for s in splats {
+            let sum = &mut self.splat_sum[s.pixel as usize];
+            for (v, x) in sum.iter_mut().zip(s.xyz) {
+                *v += x as f32;
+            }
+        }
+        self.splat_paths += paths;
+    }
+
+    /// With splats, moves the draft pass's image out of the camera sums of
+    /// the rows that hold it (idempotent; see [`Self::draft`]).
+    pub(crate) fn set_draft_aside(&mut self) {
+        if !self.splats() {
+            return;
+        }
+        if self.draft.is_empty() {
+            self.draft = vec![[0.0; 3]; self.xyz_sum.len()];
+        }
+        let w = self.width as usize;
+        for y in 0..self.height as usize {
+            if self.row_passes[y] == 1 && self.row_weights[y] > 0.0 {
+                let weight = self.row_weights[y];
+                for x in 0..w {
+                    let i = y * w + x;
+                    self.draft[i] = self.xyz_sum[i].map(|v| (f64::from(v) / weight) as f32);
+                    self.xyz_sum[i] = [0.0; 3];
+                }
+                self.row_weights[y] = 0.0;
+            }
         }
     }
 
@@ -172,9 +233,41 @@ impl Film {
         self.row_weights[y] + extra * f64::from(self.row_planned_passes[y])
     }
 
-    /// Mean XYZ of pixel `index` (row-major), with its mirror image's samples
-    /// where the film has a mirror; 0 before the first pass.
+    /// The image at pixel `index` (row-major): the camera samples' mean
+    /// plus the splats' (or the draft set aside, where the row has no
+    /// samples since).
     fn mean(&self, index: usize) -> [f64; 3] {
+        if !self.splats() {
+            return self.camera_mean(index);
+        }
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mut weight = self.pixel_weight(index);
+        let partner = self.mirror.map(|m| m.partner(index % w, index / w, w, h));
+        if let Some(p) = partner.filter(|&p| p != index) {
+            weight += self.pixel_weight(p);
+        }
+        if weight == 0.0 && !self.draft.is_empty() {
+            return self.draft[index].map(f64::from);
+        }
+        let mut mean = self.camera_mean(index);
+        if self.splat_paths > 0 {
+            let (sum, n) = match partner.filter(|&p| p != index) {
+                Some(p) => {
+                    let (a, b) = (self.splat_sum[index], self.splat_sum[p]);
+                    ([0, 1, 2].map(|c| f64::from(a[c]) + f64::from(b[c])), 2.0)
+                }
+                None => (self.splat_sum[index].map(f64::from), 1.0),
+            };
+            for (m, s) in mean.iter_mut().zip(sum) {
+                *m += s / (n * self.splat_paths as f64);
+            }
+        }
+        mean
+    }
+
+    /// Mean XYZ of pixel `index`'s camera samples (row-major), with its
+    /// mirror image's where the film has a mirror; 0 before the first pass.
+    fn camera_mean(&self, index: usize) -> [f64; 3] {
         let (w, h) = (self.width as usize, self.height as usize);
         let mut sum = self.xyz_sum[index].map(f64::from);
         let mut weight = self.pixel_weight(index);
@@ -256,7 +349,10 @@ impl Film {
                 (w, rows.len(), pixels)
             }
         };
-        let luminance: Vec<f32> = pixels.iter().map(|&i| self.mean(i)[1] as f32).collect();
+        let luminance: Vec<f32> = pixels
+            .iter()
+            .map(|&i| self.camera_mean(i)[1] as f32)
+            .collect();
         let folded = plan(&luminance, fw, fh);
         let mut plan = vec![1u8; w * h];
         for (&i, &m) in pixels.iter().zip(&folded) {

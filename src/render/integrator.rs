@@ -79,6 +79,14 @@
 //! that the sampled directions find unevenly; taken out, it leaves 0.67×
 //! the variance (`BENCHMARKS.md`, session 13).
 //!
+//! **Multiply scattered light splatted along circles of symmetry**
+//! (`circle_splatting`, on with the sun below the horizon): the camera's
+//! paths keep only their next-event points and ground branches, and the
+//! film gets the light scattered again in the air from paths started
+//! anywhere in the visible air, each added to the pixels along its point's
+//! circle about the sun's axis ([`super::circles`],
+//! `Integrator::splat_walk`).
+//!
 //! **Alternative kept as an option** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`): `shadow_samples` estimates only
 //! the segments that start in the planet's shadow through points drawn
@@ -211,6 +219,15 @@ pub struct IntegratorOptions {
     /// horizon (see [`Self::resolved`]), where it wins at equal time; an
     /// integrator built directly reads unset as off.
     pub control_variate: Option<bool>,
+    /// Multiply scattered light splatted along the scene's circles of
+    /// symmetry ([`super::circles`]): the camera's own paths keep single
+    /// scattering and the ground's light, and walks started anywhere in the
+    /// visible air carry the rest to every pixel their point's circle about
+    /// the sun's axis crosses. Needs `camera_samples` > 0 and
+    /// `next_event_estimation`. Unset (the default): on with the sun below
+    /// [`CIRCLE_SPLATTING_ELEVATION_DEG`] (see [`Self::resolved`]); an
+    /// integrator built directly reads unset as off.
+    pub circle_splatting: Option<bool>,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -237,6 +254,7 @@ impl Default for IntegratorOptions {
             russian_roulette: true,
             splitting: None,
             control_variate: None,
+            circle_splatting: None,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }
@@ -290,6 +308,12 @@ pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
 /// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
 /// is on by default.
 pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
+/// Below this sun elevation (at the observer)
+/// [`IntegratorOptions::circle_splatting`] is on by default: at twilight
+/// (−4°) 0.46× the variance × CPU time of the camera's own branches
+/// (fixed passes, `BENCHMARKS.md`, session 20); at sunset (2°) and midday
+/// about even.
+pub const CIRCLE_SPLATTING_ELEVATION_DEG: f64 = 0.0;
 /// [`IntegratorOptions::sky_guide`] with the sun above the horizon: at
 /// twilight before roulette and splitting, 0.74–0.90× the time to equal
 /// noise of none (two seed pairs, session 10; 0.15 and 0.35 alike, 0.5 no
@@ -358,6 +382,10 @@ impl IntegratorOptions {
                 ),
             ),
             control_variate: Some(control),
+            circle_splatting: Some(
+                self.circle_splatting
+                    .unwrap_or(sun_elevation_deg < CIRCLE_SPLATTING_ELEVATION_DEG),
+            ),
             sun_lobe: Some(self.sun_lobe.unwrap_or(if control {
                 CONTROL_SUN_LOBE
             } else if high_sun {
@@ -472,6 +500,9 @@ pub struct Integrator<'a> {
     camera: Option<&'a CameraDensities>,
     guide: Option<&'a SkyGuide>,
     control: Option<&'a RadianceTable>,
+    /// Camera rays branch only from the ground: the light scattered more
+    /// than once in the air reaches the film through [`super::circles`].
+    splatting: bool,
     /// The aerosol phase function's Legendre moments k_0..k_L.
     aerosol_moments: [f64; L_MAX + 1],
 }
@@ -540,6 +571,7 @@ impl<'a> Integrator<'a> {
             camera: None,
             guide: None,
             control: None,
+            splatting: false,
             aerosol_moments: medium.aerosol_phase.legendre_moments(medium.aerosol_g),
         }
     }
@@ -662,6 +694,14 @@ impl<'a> Integrator<'a> {
         coefficients
     }
 
+    /// Camera rays no longer branch from the air (only from the ground):
+    /// the film gets that light from [`super::circles`] instead.
+    #[must_use]
+    pub fn with_circle_splatting(mut self) -> Self {
+        self.splatting = true;
+        self
+    }
+
     /// Uses `guide` for scattering directions (see
     /// [`IntegratorOptions::sky_guide`]) and for the distance densities of
     /// `Self::trace_sunlit`'s segments.
@@ -708,7 +748,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Phase function of lane `j` times σ_s (i.e. σ_s,R P_R + σ_s,A P_A), per sr.
-    fn scattering_phase(
+    pub(crate) fn scattering_phase(
         &self,
         c: &super::medium::Coefficients,
         lanes: &SpectralLanes,
@@ -763,6 +803,92 @@ impl<'a> Integrator<'a> {
             ),
         }
         radiance
+    }
+
+    /// One walk of [`super::circles`]: the light arriving at `x` along a
+    /// direction drawn here, estimated by a path that starts at `x` after
+    /// one scattering (so the sun's disc itself is never added). The
+    /// direction's density mixes the guide's table and the sun lobe, as at
+    /// any scattering, with the phase function about *each* of
+    /// `camera_dirs` in equal shares instead of about one incoming
+    /// direction: the walk serves a camera ray along every one of them.
+    /// Returns the direction, its density (sr⁻¹) and the radiance estimate,
+    /// or `None` for an empty `camera_dirs`.
+    pub(crate) fn splat_walk(
+        &self,
+        x: DVec3,
+        camera_dirs: &[DVec3],
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<(DVec3, f64, Radiance)> {
+        if camera_dirs.is_empty() {
+            return None;
+        }
+        let opts = self.options;
+        let at = self
+            .guide
+            .filter(|g| {
+                opts.sky_guide() > 0.0 && (opts.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
+            })
+            .map(|g| g.at(self.medium, x));
+        let guides = at.as_ref().is_some_and(GuideAt::guides);
+        let g = if guides { opts.sky_guide() } else { 0.0 };
+        let alpha = opts.sun_lobe();
+        let dir = match at.as_ref() {
+            Some(guide) if guides && rng.uniform() < g => guide.sample(rng).0,
+            _ if rng.uniform() < alpha => {
+                self.sample_phase_direction(self.sun_direction, c, lanes, rng)
+            }
+            _ => {
+                let n = camera_dirs.len();
+                let k = ((rng.uniform() * n as f64) as usize).min(n - 1);
+                self.sample_phase_direction(camera_dirs[k], c, lanes, rng)
+            }
+        };
+        let lobes = camera_dirs
+            .iter()
+            .map(|d| self.phase_mixture_pdf(c, lanes, d.dot(dir)))
+            .sum::<f64>()
+            / camera_dirs.len() as f64;
+        let pdf = self.direction_mixture_pdf(c, lanes, dir, lobes, at.as_ref().filter(|_| guides));
+        let mut radiance = [0.0; LANES];
+        let start = (x, dir, 1, 1.0);
+        if opts.sunlight_samples() > 0 {
+            self.trace_sunlit(start, [1.0; LANES], lanes, &mut radiance, rng);
+        } else {
+            self.trace(start, [1.0; LANES], lanes, &mut radiance, rng);
+        }
+        Some((dir, pdf, radiance))
+    }
+
+    /// Transmittance from `origin` along `dir` to distance `t_m`, or `None`
+    /// where the ground hides that point.
+    pub(crate) fn transmittance_to(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_m: f64,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        let span = self.medium.span(origin, dir)?;
+        if span.hits_ground && span.t_exit < t_m {
+            return None;
+        }
+        let mut points = [(t_m.clamp(span.t_enter, span.t_exit), [0.0; LANES])];
+        self.medium.transmittance_along(
+            origin,
+            dir,
+            span,
+            lanes,
+            self.options.shadow_transmittance,
+            self.bounds,
+            &mut points,
+            false,
+            rng,
+        );
+        Some(points[0].1)
     }
 
     /// The camera ray's segment, estimated through in-scattering points from
@@ -1102,6 +1228,8 @@ impl<'a> Integrator<'a> {
         let goes_on = depth + 1 < max_order;
         let ground_goes_on = goes_on && span.hits_ground && self.medium.ground_albedo > 0.0;
         let p_medium = match (distribution, goes_on) {
+            // The camera ray's light scattered again in the air is splatted.
+            _ if depth == 0 && self.splatting => 0.0,
             (Some(d), true) if ground_goes_on => {
                 let (medium, ground) = d.shares(self.medium.ground_albedo);
                 (medium / (medium + ground)).clamp(0.05, 0.95)
@@ -1461,6 +1589,35 @@ impl<'a> Integrator<'a> {
         }
     }
 
+    /// Density (sr⁻¹) of `dir` under the scattering directions' mixture:
+    /// `phase` (the phase-function part's density, already evaluated),
+    /// mixed with the lobe about the sun ([`IntegratorOptions::sun_lobe`])
+    /// and, where `guide` is given, the guide's table
+    /// ([`IntegratorOptions::sky_guide`]).
+    fn direction_mixture_pdf(
+        &self,
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        dir: DVec3,
+        phase: f64,
+        guide: Option<&GuideAt<'_>>,
+    ) -> f64 {
+        let alpha = self.options.sun_lobe();
+        let pdf = if alpha > 0.0 {
+            let lobe = self.phase_mixture_pdf(c, lanes, self.sun_direction.dot(dir));
+            (1.0 - alpha) * phase + alpha * lobe
+        } else {
+            phase
+        };
+        match guide {
+            Some(guide) => {
+                let g = self.options.sky_guide();
+                (1.0 - g) * pdf + g * guide.pdf(dir)
+            }
+            None => pdf,
+        }
+    }
+
     /// A scattering direction and its density (per sr): with probability
     /// `sun_lobe`, from the phase function about the *sun's* direction, else
     /// about `dir`; the density is the mixture's (one-sample MIS, balance
@@ -1507,15 +1664,8 @@ impl<'a> Integrator<'a> {
             at.choose(new_dir, cell);
         }
         let phase = self.phase_mixture_pdf(c, lanes, dir.dot(new_dir));
-        let mut pdf = if alpha > 0.0 {
-            let lobe = self.phase_mixture_pdf(c, lanes, self.sun_direction.dot(new_dir));
-            (1.0 - alpha) * phase + alpha * lobe
-        } else {
-            phase
-        };
-        if let Some(guide) = at.as_ref().filter(|_| guides) {
-            pdf = (1.0 - g) * pdf + g * guide.pdf(new_dir);
-        }
+        let pdf =
+            self.direction_mixture_pdf(c, lanes, new_dir, phase, at.as_ref().filter(|_| guides));
         (new_dir, pdf, at)
     }
 
@@ -1844,7 +1994,8 @@ mod tests {
                     resolved.splitting,
                     resolved.control_variate,
                     resolved.sky_guide,
-                    resolved.camera_importance
+                    resolved.camera_importance,
+                    resolved.circle_splatting
                 ),
                 (
                     Some(samples),
@@ -1857,7 +2008,9 @@ mod tests {
                     } else {
                         SKY_GUIDE
                     }),
-                    Some(if samples == 1 { CAMERA_IMPORTANCE } else { 0.0 })
+                    Some(if samples == 1 { CAMERA_IMPORTANCE } else { 0.0 }),
+                    // Splatting, like splitting, below the horizon.
+                    Some(splitting)
                 ),
                 "{elevation_deg}°"
             );
@@ -1870,6 +2023,7 @@ mod tests {
                     control_variate: None,
                     sky_guide: None,
                     camera_importance: None,
+                    circle_splatting: None,
                     ..resolved
                 },
                 auto
@@ -1884,6 +2038,7 @@ mod tests {
                 splitting: Some(splitting),
                 control_variate: Some(!splitting),
                 camera_importance: Some(lobe),
+                circle_splatting: Some(!splitting),
                 ..IntegratorOptions::default()
             };
             assert_eq!(options.resolved(-4.0), options);

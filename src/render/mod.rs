@@ -4,9 +4,12 @@
 //! Determinism: every pixel sample draws from its own generator seeded by
 //! (scene seed, the pixel's sample number, pixel), each pixel sums its
 //! samples in order, and the adaptive plan is a function of the image, so
-//! the image does not depend on the number of threads.
+//! the image does not depend on the number of threads. The splatted paths
+//! ([`circles`]) each draw from a generator of their own, and their splats
+//! are added in the paths' order.
 
 pub mod camera;
+pub mod circles;
 pub mod columns;
 pub mod control;
 pub mod directions;
@@ -19,7 +22,7 @@ pub mod sunlight;
 pub mod trig;
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::Arc;
+use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -33,7 +36,17 @@ use crate::atmosphere::Atmosphere;
 use crate::rng::{Rng, SOBOL_POINTS};
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
+use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
 use sunlight::CameraDensities;
+
+/// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
+const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
+/// Paths splatted per pass, per pixel ([`circles`]). At twilight, in the
+/// bench (256×128, 10 s): 1: 7.74 %, 2: 7.07–7.82 %, 3: 6.55–8.28 % (five
+/// runs, time ratio of the camera's own branches 0.97–1.34), 4: 7.19 %:
+/// with more, the camera's own samples (single scattering, the ground) get
+/// too few passes (`BENCHMARKS.md`, session 20).
+const SPLAT_PATHS_PER_PIXEL: u64 = 3;
 
 /// (√5 − 1)/2: the additive recurrence with this step is the most evenly
 /// spread 1-D sequence (Weyl; the three-distance theorem).
@@ -113,6 +126,11 @@ pub struct Renderer {
     draft_weight: f64,
     /// The pixel pairs the film reads together (`mirror_symmetry`).
     mirror: Option<Mirror>,
+    /// Whether the light scattered more than once in the air is splatted
+    /// along the scene's circles of symmetry (`circle_splatting`).
+    splatting: bool,
+    /// The splatter, built on first use (after the draft pass).
+    circles: OnceLock<Option<CircleSplatter>>,
 }
 
 /// Where a pixel takes its low-discrepancy numbers
@@ -202,6 +220,10 @@ impl Renderer {
             }),
             draft_weight: draft_weight(scene.sun.elevation_deg),
             mirror: mirror_pairs(scene),
+            splatting: options.circle_splatting == Some(true)
+                && options.camera_samples > 0
+                && options.next_event_estimation,
+            circles: OnceLock::new(),
             draft_options: IntegratorOptions {
                 camera_samples: 0,
                 control_variate: Some(false),
@@ -241,7 +263,13 @@ impl Renderer {
     }
 
     pub fn new_film(&self) -> Film {
-        Film::new(self.scene.render.width, self.scene.render.height).with_mirror(self.mirror)
+        let film =
+            Film::new(self.scene.render.width, self.scene.render.height).with_mirror(self.mirror);
+        if self.splatting {
+            film.with_splats()
+        } else {
+            film
+        }
     }
 
     /// The weight of pass `pass` in the film's average: the draft's
@@ -277,16 +305,20 @@ impl Renderer {
         }
     }
 
+    /// Wavelengths each path carries (`wavelengths_per_path`, 1–[`LANES`]).
+    fn lanes_per_path(&self) -> usize {
+        self.scene
+            .render
+            .integrator
+            .wavelengths_per_path
+            .clamp(1, LANES)
+    }
+
     /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)
     /// through the importance CDF, so each lane is distributed by the CMF-based
     /// density and the lanes are stratified (Wilkie et al. 2014).
     fn sample_lanes(&self, u0: f64) -> (SpectralLanes, Lanes) {
-        let n = self
-            .scene
-            .render
-            .integrator
-            .wavelengths_per_path
-            .clamp(1, LANES);
+        let n = self.lanes_per_path();
         let mut wavelengths = [0.0; LANES];
         let mut pdfs = [0.0; LANES];
         for k in 0..LANES {
@@ -432,10 +464,18 @@ impl Renderer {
         {
             film.plan_samples();
         }
-        let integrator = self.integrator(pass);
+        let mut integrator = self.integrator(pass);
+        let (mut splat_paths, mut splat_discarded) = (0, 0);
+        if self.splatting && pass > 0 {
+            integrator = integrator.with_circle_splatting();
+            if pass == 1 {
+                film.set_draft_aside();
+            }
+            (splat_paths, splat_discarded) = self.splat_pass(film, pass, &integrator, cancelled);
+        }
         let width = film.width as usize;
-        let discarded = AtomicU64::new(0);
-        let paths = AtomicU64::new(0);
+        let discarded = AtomicU64::new(splat_discarded);
+        let paths = AtomicU64::new(splat_paths);
         let weight = self.pass_weight(pass);
         let planned = film.is_planned();
         // The film weighs each planned sample 1 (`Film::xyz`).
@@ -494,6 +534,83 @@ impl Renderer {
             paths: paths.into_inner(),
             discarded,
         }
+    }
+
+    /// The splats of pass `pass` ([`circles`]): [`SPLAT_PATHS_PER_PIXEL`]
+    /// paths per pixel, in
+    /// chunks whose splats are added in the chunks' order, so the image
+    /// does not depend on the thread count. Stops between batches of chunks
+    /// once `cancelled()` returns true; the film divides by the paths
+    /// actually splatted. Returns the paths and the discarded splats.
+    fn splat_pass(
+        &self,
+        film: &mut Film,
+        pass: u32,
+        integrator: &Integrator<'_>,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> (u64, u64) {
+        const CHUNK: u64 = 256;
+        const BATCH: u64 = 32;
+        let splatter = self.circles.get_or_init(|| {
+            CircleSplatter::new(
+                &self.medium,
+                &self.integrator(1),
+                self.sky_guide.as_deref(),
+                &self.camera,
+                self.observer_m,
+            )
+        });
+        let Some(splatter) = splatter else {
+            return (0, 0);
+        };
+        let paths_total = u64::from(film.width) * u64::from(film.height) * SPLAT_PATHS_PER_PIXEL;
+        let chunks = paths_total.div_ceil(CHUNK);
+        let n = self.lanes_per_path();
+        let (mut paths, mut discarded) = (0, 0);
+        let mut chunk = 0;
+        while chunk < chunks && !cancelled() {
+            let end = (chunk + BATCH).min(chunks);
+            let batch: Vec<(Vec<Splat>, u64, u64)> = (chunk..end)
+                .into_par_iter()
+                .map(|c| {
+                    let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
+                    let mut splats = Vec::with_capacity(CHUNK as usize * SPLATS_PER_WALK);
+                    let mut discarded = 0;
+                    for walk in walks.clone() {
+                        // A key of their own per path (the pixels' streams
+                        // share one per sample: fine for one sample per
+                        // pixel, but paths splatted into one pixel must not
+                        // be related).
+                        let mut rng = Rng::for_sample(
+                            self.scene.render.seed,
+                            (u64::from(pass) << 40) ^ walk,
+                            SPLAT_STREAM,
+                        );
+                        let (lanes, pdfs) = self.sample_lanes(rng.uniform());
+                        let weights = std::array::from_fn(|j| {
+                            let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
+                            bar.map(|b| K_M * b / (pdfs[j] * n as f64))
+                        });
+                        discarded += splatter.walk(
+                            integrator,
+                            &self.camera,
+                            &lanes,
+                            &weights,
+                            &mut rng,
+                            &mut splats,
+                        );
+                    }
+                    (splats, discarded, walks.end - walks.start)
+                })
+                .collect();
+            for (splats, d, walks) in batch {
+                film.add_splats(&splats, walks);
+                paths += walks;
+                discarded += d;
+            }
+            chunk = end;
+        }
+        (paths, discarded)
     }
 
     /// Spectral radiance reaching the observer from (`view_zenith_deg`,

@@ -1,0 +1,606 @@
+//! Multiply scattered light splatted along the scene's circles of symmetry.
+//!
+//! The scene — a spherically symmetric atmosphere over a uniform ground, lit
+//! by a sun at infinity — is unchanged by any rotation about the axis
+//! through the Earth's centre along the sun's direction. So is its light
+//! field: the radiance arriving at a point y from direction d equals that
+//! arriving at R y from R d for every such rotation R. In spherical
+//! coordinates about that axis — radius r, angle θ from the sun's
+//! direction, angle ψ about the axis, dV = r² sin θ dr dθ dψ — the light
+//! field depends on (r, θ) and the direction in y's frame, not on ψ.
+//!
+//! A pixel's multiply scattered light is an integral over the visible air:
+//! the light that arrives at y, has scattered at least once and scatters
+//! at y toward the observer O,
+//!
+//! V = ∫ J(ω) T(O, y) / t² ∫ σ_s P(ω·d) L(y, d) dd dV,
+//!
+//! ω = (y − O)/t the camera direction, J = [`Camera::pixels_per_sr`] (only
+//! where ω falls in the pixel). The camera's own paths estimate it by a
+//! point on each camera ray and a path from there: every such path serves
+//! one pixel (two with mirror pairs). Here one path serves many: a point y₀
+//! is drawn in (r, θ), K positions ψ_k along its circle, one direction d₀
+//! at y₀ and one path estimating L(y₀, d₀) — which is also an unbiased
+//! estimate of L(R_k y₀, R_k d₀) — and each y_k = R_k y₀ adds its
+//! J T σ_s P / t² term to the pixel its camera direction falls in. Each
+//! term carries the densities it was drawn with, so every pixel's expected
+//! sum is V exactly; the paths' noise, which at twilight is most of the
+//! image's, is spread over K pixels (`BENCHMARKS.md`, session 20).
+//!
+//! * **Points** (r, θ) are drawn in polar coordinates (ρ, φ) about the
+//!   observer's own (r₀, θ₀) in the plane (r − r₀, r₀ (θ − θ₀)): a circle
+//!   passing at distance ≈ ρ from the observer brings ∫ dψ / t² ∝ 1/ρ,
+//!   which the polar area element ρ dρ dφ cancels. A table over (log ρ, φ)
+//!   of that integral (with the transmittance to the observer, the air's
+//!   scattering and the guide's mean once-scattered light at the point,
+//!   [`SkyGuide::skylight`]) holds most of the density; an analytic
+//!   density in ρ, positive wherever a circle can be seen, the rest.
+//! * **Positions** ψ on the visible arc: most from a Cauchy density about
+//!   the point nearest the observer (t² ≈ d² + c ψ² there), the rest
+//!   uniform, combined by the balance heuristic (multi-sample MIS), all
+//!   stratified.
+//! * **Direction** d₀: the scene's usual mixture (the guide's table, the
+//!   sun lobe), with the phase function about each of the K camera
+//!   directions in equal shares (`Integrator::splat_walk`): a forward
+//!   peak seen by one y_k is found as often as that y_k needs it.
+
+use std::f64::consts::PI;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::camera::Camera;
+use super::guide::SkyGuide;
+use super::integrator::Integrator;
+use super::medium::{Medium, SpectralLanes, LANES};
+use crate::rng::Rng;
+
+/// Positions along a circle per path.
+pub const SPLATS_PER_WALK: usize = 32;
+/// Of them, drawn from the Cauchy density about the observer's nearest point.
+const NEAR_SPLATS: usize = 24;
+/// Share of the points drawn from the table (the rest: analytic in ρ).
+const TABLE_SHARE: f64 = 0.8;
+/// The analytic density in ρ: shares and scales (m) of two exponentials,
+/// then uniform up to the farthest visible circle.
+const RHO_SHARES: [f64; 2] = [0.5, 0.3];
+const RHO_SCALES_M: [f64; 2] = [5e3, 30e3];
+/// The table's bins: ρ log-spaced from [`TABLE_RHO_MIN_M`] (one bin below
+/// it), φ uniform; positions along the arc per bin for its integral.
+const TABLE_RHO_BINS: usize = 64;
+const TABLE_PHI_BINS: usize = 64;
+const TABLE_NODES: usize = 32;
+const TABLE_RHO_MIN_M: f64 = 10.0;
+/// Seed of the table's transmittance estimates.
+const TABLE_SEED: u64 = 0x00c1_4c1e;
+/// The table's wavelength, nm.
+const TABLE_WAVELENGTH_NM: f64 = 550.0;
+/// Cosine of the elevation below which the table stops following the
+/// equirect map's 1/cos el (the pole rows are tiny; their splats follow it).
+const TABLE_MIN_COS: f64 = 0.05;
+
+/// One path's contribution to one pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct Splat {
+    /// Row-major pixel index.
+    pub pixel: u32,
+    /// XYZ (Y in cd m⁻²) times the number of paths it is averaged over.
+    pub xyz: [f64; 3],
+}
+
+/// The frame of the scene's symmetry: the sun's axis through the Earth's
+/// centre, and the observer's place about it.
+#[derive(Clone, Copy, Debug)]
+struct SunAxis {
+    observer_m: DVec3,
+    sun: DVec3,
+    /// Unit vectors normal to the axis; the observer lies at ψ = 0.
+    e1: DVec3,
+    e2: DVec3,
+    /// The observer's radius and angle from the sun's direction.
+    r0_m: f64,
+    theta0: f64,
+    ground_m: f64,
+    top_m: f64,
+}
+
+impl SunAxis {
+    /// `None` with the sun at the observer's zenith or nadir, where every
+    /// circle through the observer's neighbourhood degenerates.
+    fn new(observer_m: DVec3, sun: DVec3, ground_m: f64, top_m: f64) -> Option<Self> {
+        let r0_m = observer_m.length();
+        let up = observer_m / r0_m;
+        let normal = up - up.dot(sun) * sun;
+        if normal.length() < 1e-9 {
+            return None;
+        }
+        let e1 = normal.normalize();
+        Some(Self {
+            observer_m,
+            sun,
+            e1,
+            e2: sun.cross(e1),
+            r0_m,
+            theta0: up.dot(sun).clamp(-1.0, 1.0).acos(),
+            ground_m,
+            top_m,
+        })
+    }
+
+    fn point(&self, r_m: f64, theta: f64, psi: f64) -> DVec3 {
+        let (sin_psi, cos_psi) = psi.sin_cos();
+        r_m * (theta.sin() * (cos_psi * self.e1 + sin_psi * self.e2) + theta.cos() * self.sun)
+    }
+
+    /// `v` turned by `psi` about the axis.
+    fn rotate(&self, v: DVec3, psi: f64) -> DVec3 {
+        let (a, b) = (v.dot(self.e1), v.dot(self.e2));
+        let (sin_psi, cos_psi) = psi.sin_cos();
+        (a * cos_psi - b * sin_psi) * self.e1
+            + (a * sin_psi + b * cos_psi) * self.e2
+            + v.dot(self.sun) * self.sun
+    }
+
+    /// Largest angle at the Earth's centre between the observer and a
+    /// point of radius `r_m` that the ground does not hide.
+    fn horizon_angle(&self, r_m: f64) -> f64 {
+        (self.ground_m / self.r0_m).min(1.0).acos() + (self.ground_m / r_m).min(1.0).acos()
+    }
+
+    /// Half the visible arc (|ψ| ≤ it) of the circle (r, θ): the points
+    /// within [`Self::horizon_angle`] of the observer. 0: none.
+    fn half_arc(&self, r_m: f64, theta: f64) -> f64 {
+        let sines = self.theta0.sin() * theta.sin();
+        if sines <= 0.0 {
+            return 0.0;
+        }
+        let cos_min = (self.horizon_angle(r_m).cos() - self.theta0.cos() * theta.cos()) / sines;
+        if cos_min >= 1.0 {
+            0.0
+        } else if cos_min <= -1.0 {
+            PI
+        } else {
+            cos_min.acos()
+        }
+    }
+
+    /// (r, θ) at polar (ρ, φ) about the observer in the plane
+    /// (r − r₀, r₀ (θ − θ₀)); area there is r₀ dr dθ.
+    fn at_polar(&self, rho_m: f64, phi: f64) -> (f64, f64) {
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        (
+            self.r0_m + rho_m * sin_phi,
+            self.theta0 + rho_m * cos_phi / self.r0_m,
+        )
+    }
+
+    /// The farthest visible circle's ρ.
+    fn rho_max(&self) -> f64 {
+        let dr = (self.top_m - self.r0_m)
+            .abs()
+            .max((self.r0_m - self.ground_m).abs());
+        let dx = self.r0_m * self.horizon_angle(self.top_m);
+        dr.hypot(dx)
+    }
+}
+
+/// Where the circle (r, θ) passes the observer: the scale a of the
+/// Cauchy density a / (a² + ψ²) that follows 1/t² along it.
+fn cauchy_scale(axis: &SunAxis, r_m: f64, theta: f64) -> f64 {
+    let nearest = (axis.point(r_m, theta, 0.0) - axis.observer_m)
+        .length()
+        .max(1.0);
+    // t² = d² + 2 r r₀ sin θ sin θ₀ (1 − cos ψ) ≈ d² + r r₀ sin θ sin θ₀ ψ².
+    let curvature = r_m * axis.r0_m * theta.sin() * axis.theta0.sin();
+    nearest / curvature.max(1.0).sqrt()
+}
+
+/// The positions along the arc |ψ| ≤ `half` and their combined density
+/// (balance heuristic over the Cauchy and uniform draws; the estimate of a
+/// sum over positions divides each term by it).
+fn arc_positions(half: f64, scale: f64, u: f64) -> [(f64, f64); SPLATS_PER_WALK] {
+    let atan_half = (half / scale).atan();
+    let far = SPLATS_PER_WALK - NEAR_SPLATS;
+    let density = |psi: f64| {
+        NEAR_SPLATS as f64 * scale / (scale * scale + psi * psi) / (2.0 * atan_half)
+            + far as f64 / (2.0 * half)
+    };
+    std::array::from_fn(|k| {
+        let psi = if k < NEAR_SPLATS {
+            let v = (k as f64 + u) / NEAR_SPLATS as f64;
+            scale * (atan_half * (2.0 * v - 1.0)).tan()
+        } else {
+            let v = ((k - NEAR_SPLATS) as f64 + u) / far as f64;
+            half * (2.0 * v - 1.0)
+        };
+        (psi, density(psi))
+    })
+}
+
+/// Density (per ρ, per φ-turn) of the analytic part.
+fn analytic_rho_density(rho_m: f64, rho_max: f64) -> f64 {
+    let exponentials: f64 = RHO_SHARES
+        .iter()
+        .zip(RHO_SCALES_M)
+        .map(|(share, scale)| share * (-rho_m / scale).exp() / scale)
+        .sum();
+    let uniform = 1.0 - RHO_SHARES.iter().sum::<f64>();
+    exponentials
+        + if rho_m < rho_max {
+            uniform / rho_max
+        } else {
+            0.0
+        }
+}
+
+fn sample_analytic_rho(u: f64, v: f64, rho_max: f64) -> f64 {
+    let (a, b) = (RHO_SHARES[0], RHO_SHARES[0] + RHO_SHARES[1]);
+    if u < a {
+        -RHO_SCALES_M[0] * (1.0 - v).ln()
+    } else if u < b {
+        -RHO_SCALES_M[1] * (1.0 - v).ln()
+    } else {
+        v * rho_max
+    }
+}
+
+/// Splats the multiply scattered light of one scene for one camera.
+pub struct CircleSplatter {
+    axis: SunAxis,
+    rho_max: f64,
+    /// Bin edges in ρ (m).
+    rho_edges: Vec<f64>,
+    /// Probability of each (ρ, φ) bin, row-major in ρ; empty if nothing in
+    /// view had weight (then the analytic density alone).
+    bins: Vec<f64>,
+    cdf: Vec<f64>,
+}
+
+impl CircleSplatter {
+    /// The splatter for `camera` at `observer_m`, its point table built
+    /// with `integrator`'s transmittance estimates and `guide`'s light;
+    /// `None` where the scene has no circles to splat along (the sun at the
+    /// zenith or nadir).
+    pub fn new(
+        medium: &Medium,
+        integrator: &Integrator<'_>,
+        guide: Option<&SkyGuide>,
+        camera: &Camera,
+        observer_m: DVec3,
+    ) -> Option<Self> {
+        let axis = SunAxis::new(
+            observer_m,
+            integrator.sun_direction,
+            medium.planet_radius_m,
+            medium.top_radius_m,
+        )?;
+        let rho_max = axis.rho_max();
+        let rho_edges: Vec<f64> = std::iter::once(0.0)
+            .chain((0..TABLE_RHO_BINS).map(|i| {
+                TABLE_RHO_MIN_M
+                    * (rho_max / TABLE_RHO_MIN_M).powf(i as f64 / (TABLE_RHO_BINS - 1) as f64)
+            }))
+            .collect();
+        let lanes = SpectralLanes::new([TABLE_WAVELENGTH_NM; LANES], 1, medium, true);
+        let up = observer_m.normalize();
+        let mass: Vec<f64> = (0..TABLE_RHO_BINS * TABLE_PHI_BINS)
+            .into_par_iter()
+            .map(|bin| {
+                let (i, j) = (bin / TABLE_PHI_BINS, bin % TABLE_PHI_BINS);
+                let rho = 0.5 * (rho_edges[i] + rho_edges[i + 1]);
+                let phi = (j as f64 + 0.5) / TABLE_PHI_BINS as f64 * 2.0 * PI;
+                let (r, theta) = axis.at_polar(rho, phi);
+                if !(axis.ground_m..=axis.top_m).contains(&r) || !(0.0..=PI).contains(&theta) {
+                    return 0.0;
+                }
+                let half = axis.half_arc(r, theta);
+                if half <= 0.0 {
+                    return 0.0;
+                }
+                let mut rng = Rng::new(TABLE_SEED, bin as u64);
+                let y0 = axis.point(r, theta, 0.0);
+                let c = medium.coefficients(r, &lanes);
+                let light = guide.map_or(1.0, |g| g.skylight(medium, y0)) * c.scattering(0);
+                let scale = cauchy_scale(&axis, r, theta);
+                let atan_half = (half / scale).atan();
+                // ∫ dψ T / (t² cos el) by the Cauchy draws at stratum centres.
+                let mut integral = 0.0;
+                for k in 0..TABLE_NODES {
+                    let v = (k as f64 + 0.5) / TABLE_NODES as f64;
+                    let psi = scale * (atan_half * (2.0 * v - 1.0)).tan();
+                    let density = scale / (scale * scale + psi * psi) / (2.0 * atan_half);
+                    let to = axis.point(r, theta, psi) - observer_m;
+                    let t = to.length();
+                    let dir = to / t;
+                    if camera.pixels_per_sr(dir) <= 0.0 {
+                        continue;
+                    }
+                    let Some(tr) =
+                        integrator.transmittance_to(observer_m, dir, t, &lanes, &mut rng)
+                    else {
+                        continue;
+                    };
+                    let cos_el = (1.0 - dir.dot(up).powi(2)).max(0.0).sqrt();
+                    integral += tr[0]
+                        / (t * t * cos_el.max(TABLE_MIN_COS))
+                        / (TABLE_NODES as f64 * density);
+                }
+                // Density per r₀ dr dθ, times the bin's area ρ Δρ Δφ.
+                r * r
+                    * theta.sin()
+                    * light
+                    * integral
+                    * rho
+                    * (rho_edges[i + 1] - rho_edges[i])
+                    * (2.0 * PI / TABLE_PHI_BINS as f64)
+                    / axis.r0_m
+            })
+            .collect();
+        let total: f64 = mass.iter().sum();
+        let (bins, cdf) = if total > 0.0 && total.is_finite() {
+            let bins: Vec<f64> = mass.iter().map(|m| m / total).collect();
+            let mut sum = 0.0;
+            let cdf = bins
+                .iter()
+                .map(|p| {
+                    sum += p;
+                    sum
+                })
+                .collect();
+            (bins, cdf)
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        Some(Self {
+            axis,
+            rho_max,
+            rho_edges,
+            bins,
+            cdf,
+        })
+    }
+
+    /// Density of (ρ, φ) per dρ dφ.
+    fn polar_density(&self, rho: f64, phi: f64) -> f64 {
+        let analytic = analytic_rho_density(rho, self.rho_max) / (2.0 * PI);
+        if self.bins.is_empty() {
+            return analytic;
+        }
+        let i = self.rho_edges.partition_point(|&e| e <= rho);
+        let table = if (1..self.rho_edges.len()).contains(&i) {
+            let i = i - 1;
+            let j = ((phi / (2.0 * PI) * TABLE_PHI_BINS as f64) as usize).min(TABLE_PHI_BINS - 1);
+            let width = self.rho_edges[i + 1] - self.rho_edges[i];
+            self.bins[i * TABLE_PHI_BINS + j] / (width * 2.0 * PI / TABLE_PHI_BINS as f64)
+        } else {
+            0.0
+        };
+        TABLE_SHARE * table + (1.0 - TABLE_SHARE) * analytic
+    }
+
+    fn sample_polar(&self, rng: &mut Rng) -> (f64, f64) {
+        let (u, v, w) = (rng.uniform(), rng.uniform(), rng.uniform());
+        if !self.bins.is_empty() && rng.uniform() < TABLE_SHARE {
+            let bin = self
+                .cdf
+                .partition_point(|&c| c <= u)
+                .min(self.bins.len() - 1);
+            let (i, j) = (bin / TABLE_PHI_BINS, bin % TABLE_PHI_BINS);
+            let rho = self.rho_edges[i] + v * (self.rho_edges[i + 1] - self.rho_edges[i]);
+            (rho, (j as f64 + w) / TABLE_PHI_BINS as f64 * 2.0 * PI)
+        } else {
+            (sample_analytic_rho(u, v, self.rho_max), w * 2.0 * PI)
+        }
+    }
+
+    /// One path and its splats (at most [`SPLATS_PER_WALK`]) into `out`;
+    /// each splat's XYZ is the path's estimate for its pixel (the film
+    /// divides by the number of paths). `lanes`' wavelengths were drawn
+    /// with densities `wavelength_pdfs`; `xyz_bar` gives the colour-matching
+    /// functions. Returns the number of splats discarded as not finite.
+    #[allow(clippy::too_many_arguments)]
+    pub fn walk(
+        &self,
+        integrator: &Integrator<'_>,
+        camera: &Camera,
+        lanes: &SpectralLanes,
+        wavelength_weights: &[[f64; 3]; LANES],
+        rng: &mut Rng,
+        out: &mut Vec<Splat>,
+    ) -> u64 {
+        let axis = &self.axis;
+        let (rho, phi) = self.sample_polar(rng);
+        let (r, theta) = axis.at_polar(rho, phi);
+        if rho <= 0.0 || !(axis.ground_m..=axis.top_m).contains(&r) || !(0.0..=PI).contains(&theta)
+        {
+            return 0;
+        }
+        let half = axis.half_arc(r, theta);
+        if half <= 0.0 {
+            return 0;
+        }
+        // Density per dr dθ: per dρ dφ × r₀ / ρ.
+        let point_density = self.polar_density(rho, phi) * axis.r0_m / rho;
+        let positions = arc_positions(half, cauchy_scale(axis, r, theta), rng.uniform());
+        let y0 = axis.point(r, theta, 0.0);
+        // Each position's camera direction, turned back into y₀'s frame.
+        let camera_dirs: [DVec3; SPLATS_PER_WALK] = std::array::from_fn(|k| {
+            let psi = positions[k].0;
+            axis.rotate(
+                (axis.point(r, theta, psi) - axis.observer_m).normalize(),
+                -psi,
+            )
+        });
+        let c = integrator.medium.coefficients(r, lanes);
+        let Some((d0, direction_pdf, radiance)) =
+            integrator.splat_walk(y0, &camera_dirs, &c, lanes, rng)
+        else {
+            return 0;
+        };
+        if direction_pdf <= 0.0 || radiance[..lanes.active].iter().all(|&l| l == 0.0) {
+            return 0;
+        }
+        let (width, height) = camera.size();
+        let mut discarded = 0;
+        for (&(psi, position_density), &cam_dir) in positions.iter().zip(&camera_dirs) {
+            let to = axis.point(r, theta, psi) - axis.observer_m;
+            let t = to.length();
+            let dir = to / t;
+            let per_sr = camera.pixels_per_sr(dir);
+            if per_sr <= 0.0 {
+                continue;
+            }
+            let Some((px, py)) = camera.project(dir) else {
+                continue;
+            };
+            if !(0.0..width).contains(&px) || !(0.0..height).contains(&py) {
+                continue;
+            }
+            let Some(tr) = integrator.transmittance_to(axis.observer_m, dir, t, lanes, rng) else {
+                continue;
+            };
+            let mu = cam_dir.dot(d0);
+            let weight = r * r * theta.sin() * per_sr
+                / (t * t * point_density * position_density * direction_pdf);
+            let mut xyz = [0.0; 3];
+            for j in 0..lanes.active {
+                let l =
+                    tr[j] * integrator.scattering_phase(&c, lanes, j, mu) * radiance[j] * weight;
+                for (v, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
+                    *v += l * bar;
+                }
+            }
+            if xyz.iter().all(|v| v.is_finite()) {
+                out.push(Splat {
+                    pixel: (py as u32) * width as u32 + px as u32,
+                    xyz,
+                });
+            } else {
+                discarded += 1;
+            }
+        }
+        discarded
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::atmosphere::{Atmosphere, AtmosphereParams};
+    use crate::render::direction_from_az_el;
+
+    fn axis_for(sun_elevation_deg: f64) -> SunAxis {
+        let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
+        let observer = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2.0);
+        SunAxis::new(
+            observer,
+            direction_from_az_el(30.0, sun_elevation_deg),
+            medium.planet_radius_m,
+            medium.top_radius_m,
+        )
+        .unwrap()
+    }
+
+    #[test]
+    fn the_axis_frame_places_the_observer_and_turns_about_the_sun() {
+        let axis = axis_for(-4.0);
+        let at_observer = axis.point(axis.r0_m, axis.theta0, 0.0);
+        assert!((at_observer - axis.observer_m).length() < 1e-6);
+        let v = DVec3::new(0.3, -0.5, 0.8).normalize();
+        let turned = axis.rotate(v, 0.7);
+        assert!((turned.dot(axis.sun) - v.dot(axis.sun)).abs() < 1e-12);
+        assert!((turned.length() - 1.0).abs() < 1e-12);
+        assert!((axis.rotate(turned, -0.7) - v).length() < 1e-12);
+        // point(r, θ, ψ) is point(r, θ, 0) turned by ψ.
+        let p = axis.point(axis.r0_m + 3e3, 1.5, 0.0);
+        assert!((axis.rotate(p, 0.2) - axis.point(axis.r0_m + 3e3, 1.5, 0.2)).length() < 1e-6);
+    }
+
+    #[test]
+    fn the_visible_arc_is_where_the_ground_does_not_hide_the_circle() {
+        // Brute force over ψ: a point is visible iff the segment from the
+        // observer misses the planet.
+        let axis = axis_for(-4.0);
+        let hidden = |y: DVec3| {
+            let o = axis.observer_m;
+            let d = y - o;
+            let s = (-o.dot(d) / d.length_squared()).clamp(0.0, 1.0);
+            (o + d * s).length() < axis.ground_m - 1e-3
+        };
+        let mut rng = Rng::new(3, 0);
+        for _ in 0..300 {
+            let r = axis.ground_m + rng.uniform() * (axis.top_m - axis.ground_m);
+            let theta = axis.theta0 + (rng.uniform() - 0.5) * 0.4;
+            let half = axis.half_arc(r, theta);
+            for k in 0..200 {
+                let psi = -PI + (f64::from(k) + 0.5) / 200.0 * 2.0 * PI;
+                let visible = !hidden(axis.point(r, theta, psi));
+                // Away from the arc's ends (the brute force's own rounding).
+                if (psi.abs() - half).abs() > 1e-6 {
+                    assert_eq!(
+                        visible,
+                        psi.abs() < half,
+                        "r {r} θ {theta} ψ {psi} half {half}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn arc_positions_integrate_by_their_density() {
+        // Σ f(ψ_k)/density(ψ_k) is an unbiased estimate of ∫ f over the arc
+        // for any f; with f = 1 and f = the 1/t² shape, averaged over u.
+        let (half, scale) = (0.3, 2e-4);
+        for f in [
+            (|_: f64| 1.0) as fn(f64) -> f64,
+            |psi: f64| 2e-4 / (4e-8 + psi * psi),
+            |psi: f64| psi.cos() * (1.0 + psi),
+        ] {
+            let exact = {
+                // Midpoint rule on a fine grid, refined near 0.
+                let n = 2_000_000u32;
+                (0..n)
+                    .map(|i| {
+                        let psi = -half + (f64::from(i) + 0.5) / f64::from(n) * 2.0 * half;
+                        f(psi)
+                    })
+                    .sum::<f64>()
+                    * 2.0
+                    * half
+                    / f64::from(n)
+            };
+            let trials = 4000u32;
+            let estimate = (0..trials)
+                .map(|i| {
+                    let u = (f64::from(i) + 0.5) / f64::from(trials);
+                    arc_positions(half, scale, u)
+                        .iter()
+                        .map(|&(psi, density)| f(psi) / density)
+                        .sum::<f64>()
+                })
+                .sum::<f64>()
+                / f64::from(trials);
+            assert!(
+                (estimate / exact - 1.0).abs() < 2e-3,
+                "{estimate} against {exact}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_analytic_density_integrates_to_one() {
+        let rho_max = 1.2e6;
+        let n = 400_000u32;
+        let sum: f64 = (0..n)
+            .map(|i| {
+                let rho = (f64::from(i) + 0.5) / f64::from(n) * 4.0 * rho_max;
+                analytic_rho_density(rho, rho_max)
+            })
+            .sum::<f64>()
+            * 4.0
+            * rho_max
+            / f64::from(n);
+        assert!((sum - 1.0).abs() < 2e-3, "{sum}");
+    }
+}
