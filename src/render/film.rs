@@ -130,12 +130,6 @@ pub struct Film {
     pub(crate) splat_sum: Vec<[f32; 3]>,
     /// Paths splatted so far (the splat sums' divisor).
     pub(crate) splat_paths: u64,
-    /// With splatting, the draft pass's image, set aside when the first
-    /// full pass starts: the draft estimates every order along the camera
-    /// rays, the later passes' camera paths only what is not splatted, so
-    /// the two cannot share one mean. Rows show it until they hold a pass
-    /// of their own.
-    pub(crate) draft: Vec<[f32; 3]>,
 }
 
 impl Film {
@@ -152,7 +146,6 @@ impl Film {
             mirror: None,
             splat_sum: Vec::new(),
             splat_paths: 0,
-            draft: Vec::new(),
         }
     }
 
@@ -177,29 +170,6 @@ impl Film {
             }
         }
         self.splat_paths += paths;
-    }
-
-    /// With splats, moves the draft pass's image out of the camera sums of
-    /// the rows that hold it (idempotent; see [`Self::draft`]).
-    pub(crate) fn set_draft_aside(&mut self) {
-        if !self.splats() {
-            return;
-        }
-        if self.draft.is_empty() {
-            self.draft = vec![[0.0; 3]; self.xyz_sum.len()];
-        }
-        let w = self.width as usize;
-        for y in 0..self.height as usize {
-            if self.row_passes[y] == 1 && self.row_weights[y] > 0.0 {
-                let weight = self.row_weights[y];
-                for x in 0..w {
-                    let i = y * w + x;
-                    self.draft[i] = self.xyz_sum[i].map(|v| (f64::from(v) / weight) as f32);
-                    self.xyz_sum[i] = [0.0; 3];
-                }
-                self.row_weights[y] = 0.0;
-            }
-        }
     }
 
     /// The film reading each pixel together with its image under `mirror`
@@ -233,25 +203,29 @@ impl Film {
         self.row_weights[y] + extra * f64::from(self.row_planned_passes[y])
     }
 
-    /// The image at pixel `index` (row-major): the camera samples' mean
-    /// plus the splats' (or the draft set aside, where the row has no
-    /// samples since).
+    /// The image at pixel `index` (row-major). With splats, a row that
+    /// holds only the draft pass shows it alone (it estimated every order
+    /// along the camera rays); from the first full pass on, the draft is
+    /// gone from the row (`Self::drop_draft`) and the image is the camera
+    /// samples' mean plus the splats'.
     fn mean(&self, index: usize) -> [f64; 3] {
         if !self.splats() {
             return self.camera_mean(index);
         }
         let (w, h) = (self.width as usize, self.height as usize);
-        let mut weight = self.pixel_weight(index);
-        let partner = self.mirror.map(|m| m.partner(index % w, index / w, w, h));
-        if let Some(p) = partner.filter(|&p| p != index) {
-            weight += self.pixel_weight(p);
+        let full = |i: usize| self.row_passes[i / w] >= 2;
+        if !full(index) {
+            return self.pixel_mean(index, None);
         }
-        if weight == 0.0 && !self.draft.is_empty() {
-            return self.draft[index].map(f64::from);
-        }
-        let mut mean = self.camera_mean(index);
+        // A mirror partner still on the draft would mix the draft's
+        // estimate into this pixel's.
+        let partner = self
+            .mirror
+            .map(|m| m.partner(index % w, index / w, w, h))
+            .filter(|&p| p != index && full(p));
+        let mut mean = self.pixel_mean(index, partner);
         if self.splat_paths > 0 {
-            let (sum, n) = match partner.filter(|&p| p != index) {
+            let (sum, n) = match partner {
                 Some(p) => {
                     let (a, b) = (self.splat_sum[index], self.splat_sum[p]);
                     ([0, 1, 2].map(|c| f64::from(a[c]) + f64::from(b[c])), 2.0)
@@ -265,20 +239,35 @@ impl Film {
         mean
     }
 
+    /// With splats, empties row `y`'s sums of the draft pass before its
+    /// first full pass (see [`Self::mean`]).
+    pub(crate) fn drop_draft(row: &mut [[f32; 3]], passes: u32, row_weight: &mut f64) {
+        if passes == 1 {
+            row.fill([0.0; 3]);
+            *row_weight = 0.0;
+        }
+    }
+
     /// Mean XYZ of pixel `index`'s camera samples (row-major), with its
     /// mirror image's where the film has a mirror; 0 before the first pass.
     fn camera_mean(&self, index: usize) -> [f64; 3] {
         let (w, h) = (self.width as usize, self.height as usize);
+        let partner = self
+            .mirror
+            .map(|m| m.partner(index % w, index / w, w, h))
+            .filter(|&p| p != index);
+        self.pixel_mean(index, partner)
+    }
+
+    /// Mean XYZ of the camera samples of pixel `index` and of `partner`.
+    fn pixel_mean(&self, index: usize, partner: Option<usize>) -> [f64; 3] {
         let mut sum = self.xyz_sum[index].map(f64::from);
         let mut weight = self.pixel_weight(index);
-        if let Some(mirror) = self.mirror {
-            let partner = mirror.partner(index % w, index / w, w, h);
-            if partner != index {
-                for (s, p) in sum.iter_mut().zip(self.xyz_sum[partner]) {
-                    *s += f64::from(p);
-                }
-                weight += self.pixel_weight(partner);
+        if let Some(p) = partner {
+            for (s, v) in sum.iter_mut().zip(self.xyz_sum[p]) {
+                *s += f64::from(v);
             }
+            weight += self.pixel_weight(p);
         }
         if weight > 0.0 {
             sum.map(|s| s / weight)
@@ -485,6 +474,51 @@ fn bin_centre(b: usize) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn with_splats_a_row_shows_its_draft_until_its_first_full_pass() {
+        // 2×2 film; the draft pass gave every pixel XYZ 2 at weight 0.5.
+        let mut film = Film::new(2, 2).with_splats();
+        film.xyz_sum.fill([1.0; 3]);
+        film.row_passes.fill(1);
+        film.row_weights.fill(0.5);
+        // Two splatted paths put XYZ 4 into pixel 0 (mean 2 there).
+        film.add_splats(
+            &[super::super::circles::Splat {
+                pixel: 0,
+                xyz: [4.0; 3],
+            }],
+            2,
+        );
+        // Draft only: the draft's estimate alone, splats not added to it.
+        assert_eq!(film.xyz(0, 0), [2.0; 3]);
+        // Row 0's first full pass: the draft leaves, a sample of 3 comes in.
+        let w = film.width as usize;
+        Film::drop_draft(
+            &mut film.xyz_sum[..w],
+            film.row_passes[0],
+            &mut film.row_weights[0],
+        );
+        film.xyz_sum[..w].fill([3.0; 3]);
+        film.row_weights[0] = 1.0;
+        film.row_passes[0] = 2;
+        assert_eq!(film.xyz(0, 0), [5.0; 3]);
+        assert_eq!(film.xyz(1, 0), [3.0; 3]);
+        assert_eq!(film.xyz(0, 1), [2.0; 3]);
+        // Later passes keep their samples.
+        Film::drop_draft(
+            &mut film.xyz_sum[..w],
+            film.row_passes[0],
+            &mut film.row_weights[0],
+        );
+        assert_eq!(film.xyz(1, 0), [3.0; 3]);
+        // Without splats the draft is one sample among the others.
+        let mut plain = Film::new(2, 1);
+        plain.xyz_sum.fill([1.0; 3]);
+        plain.row_passes.fill(2);
+        plain.row_weights.fill(1.5);
+        assert_eq!(plain.xyz(0, 0), [1.0 / 1.5; 3]);
+    }
 
     /// A deterministic pseudo-random value in [0, 1) per index.
     fn hash01(i: usize) -> f32 {

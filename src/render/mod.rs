@@ -468,9 +468,6 @@ impl Renderer {
         let (mut splat_paths, mut splat_discarded) = (0, 0);
         if self.splatting && pass > 0 {
             integrator = integrator.with_circle_splatting();
-            if pass == 1 {
-                film.set_draft_aside();
-            }
             (splat_paths, splat_discarded) = self.splat_pass(film, pass, &integrator, cancelled);
         }
         let width = film.width as usize;
@@ -478,6 +475,7 @@ impl Renderer {
         let paths = AtomicU64::new(splat_paths);
         let weight = self.pass_weight(pass);
         let planned = film.is_planned();
+        let splats = film.splats();
         // The film weighs each planned sample 1 (`Film::xyz`).
         debug_assert!(!planned || weight == 1.0);
         let plan = &film.plan;
@@ -494,6 +492,9 @@ impl Renderer {
             .for_each(|(y, (((row, passes), row_weight), planned_passes))| {
                 if cancelled() || *passes != pass {
                     return;
+                }
+                if splats {
+                    Film::drop_draft(row, *passes, row_weight);
                 }
                 let mut row_paths = 0;
                 for (x, sum) in row.iter_mut().enumerate() {
