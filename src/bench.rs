@@ -294,7 +294,9 @@ fn render_for(renderer: &Renderer, seconds: f64) -> Rendered {
     let start = Instant::now();
     let mut last_end = 0.0;
     loop {
-        paths += renderer.render_pass(&mut film, pass, &|| false).paths;
+        // Camera paths and splatted ones: both are paths traced.
+        let stats = renderer.render_pass(&mut film, pass, &|| false);
+        paths += stats.paths + stats.splat_paths;
         pass += 1;
         let elapsed = start.elapsed().as_secs_f64();
         let last_pass = elapsed - last_end;
@@ -967,6 +969,12 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             for variant in &variants {
                 eprintln!("bench: {name}: ablation {}", variant.name());
                 let s = variant.apply(scene)?;
+                // A listed switch the scene cannot take (circle splatting
+                // from above the air) is left out of its table.
+                if let Err(e) = s.validate() {
+                    eprintln!("bench: {name}: ablation {} left out: {e}", variant.name());
+                    continue;
+                }
                 let v = pool.install(|| measure_noise(&s, budget_s, seed))?;
                 let ratio =
                     (v.noise * v.noise * v.seconds / (run.noise * run.noise * run.seconds)).sqrt();

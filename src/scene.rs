@@ -118,12 +118,17 @@ impl Default for CameraParams {
 
 /// Most samples per pixel (passes) a scene may ask for, 2²⁰: with up to 16
 /// samples per pass (adaptive sampling) that is 2²⁴ samples, about where the
-/// film's f32 sums (24-bit significand) stop registering one more.
+/// film's f32 sums (24-bit significand) stop registering one more. (The
+/// splat layer, with the sun below the horizon, takes ~100 splats per
+/// pixel and pass, so it reaches that after ~10⁵ passes: further passes
+/// refine the camera's part only.)
 pub const MAX_SPP: u32 = 1 << 20;
 /// Most pixels a render may have: 16384 × 8192, the largest panoramas in
 /// common use. Memory grows with the pixels (0.78 GiB peak for an 8192 ×
-/// 4096 export, `BENCHMARKS.md`), so this is about 3 GiB; a much larger
-/// image would fail to allocate, which aborts the program.
+/// 4096 export, `BENCHMARKS.md`), so this is about 3 GiB, 1.6 GiB more with
+/// the sun below the horizon (the film's splat layer,
+/// `render::circles`); a much larger image would fail to allocate, which
+/// aborts the program.
 pub const MAX_PIXELS: u64 = 16_384 * 8_192;
 /// Largest seed: TOML's integers are signed 64-bit, so a larger one could
 /// not be read back from the scene a render embeds in its EXR.
@@ -397,6 +402,17 @@ impl Scene {
             0,
             crate::render::integrator::MAX_FORCED_COLLISION_DEPTH as usize,
         )?;
+        if i.circle_splatting == Some(true)
+            && self.observer.altitude_m >= self.atmosphere.top_altitude_m
+        {
+            // From above the air the splats' densities follow the light
+            // poorly: 70 % noise after 40 s on the `space` bench scene
+            // against 2 % without (`BENCHMARKS.md`, session 20).
+            return Err(SceneError::new(
+                "circle_splatting",
+                "needs the observer inside the atmosphere (altitude below its top)",
+            ));
+        }
         if i.circle_splatting == Some(true) && (i.camera_samples == 0 || !i.next_event_estimation) {
             // The camera paths' share of the light is what their
             // next-event points estimate; without them nothing would.
@@ -444,6 +460,12 @@ mod tests {
         let ok = "[render.integrator]\ncircle_splatting = false\ncamera_samples = 0";
         assert!(Scene::from_toml(ok).is_ok());
         assert!(Scene::from_toml("[render.integrator]\ncamera_samples = 0").is_ok());
+        // From above the air: refused when asked for, left off when unset.
+        let mut space = Scene::preset("space").unwrap();
+        space.render.integrator.circle_splatting = Some(true);
+        let e = space.validate().unwrap_err();
+        assert_eq!(e.parameter, "circle_splatting");
+        assert!(e.to_string().contains("inside the atmosphere"), "{e}");
     }
 
     #[test]

@@ -28,14 +28,18 @@ fn small(preset: &str, width: u32, height: u32, spp: u32) -> Scene {
 
 #[test]
 fn same_seed_same_image_whatever_the_thread_count() {
-    let scene = small("sunset", 24, 12, 4);
-    let one = render(&scene, 1);
-    let two = render(&scene, 2);
-    let three = render(&scene, 3);
-    assert!(one == two && two == three);
-    let mut other = scene.clone();
-    other.render.seed = 99;
-    assert!(render(&other, 2) != one);
+    // Sunset: the camera's paths alone; twilight: with the paths splatted
+    // along the circles of symmetry too.
+    for preset in ["sunset", "twilight"] {
+        let scene = small(preset, 24, 12, 4);
+        let one = render(&scene, 1);
+        let two = render(&scene, 2);
+        let three = render(&scene, 3);
+        assert!(one == two && two == three, "{preset}");
+        let mut other = scene.clone();
+        other.render.seed = 99;
+        assert!(render(&other, 2) != one, "{preset}");
+    }
 }
 
 #[test]

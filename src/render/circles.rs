@@ -75,8 +75,9 @@ const TABLE_RHO_MIN_M: f64 = 10.0;
 const TABLE_SEED: u64 = 0x00c1_4c1e;
 /// The table's wavelength, nm.
 const TABLE_WAVELENGTH_NM: f64 = 550.0;
-/// Cosine of the elevation below which the table stops following the
-/// equirect map's 1/cos el (the pole rows are tiny; their splats follow it).
+/// Cosine of the elevation below which the table stops following 1/cos el
+/// (the equirect map's pixels per steradian near its poles, whose rows are
+/// tiny; their splats follow it: only the table's importance is capped).
 const TABLE_MIN_COS: f64 = 0.05;
 
 /// One path's contribution to one pixel.
@@ -187,9 +188,12 @@ impl SunAxis {
 /// Where the circle (r, θ) passes the observer: the scale a of the
 /// Cauchy density a / (a² + ψ²) that follows 1/t² along it.
 fn cauchy_scale(axis: &SunAxis, r_m: f64, theta: f64) -> f64 {
+    // Floored far below any pixel's footprint, only to keep the scale
+    // positive (a floor near the observer's scale would leave the 1/t²
+    // peak of the nearest circles unfollowed: fireflies).
     let nearest = (axis.point(r_m, theta, 0.0) - axis.observer_m)
         .length()
-        .max(1.0);
+        .max(1e-6);
     // t² = d² + 2 r r₀ sin θ sin θ₀ (1 − cos ψ) ≈ d² + r r₀ sin θ sin θ₀ ψ².
     let curvature = r_m * axis.r0_m * theta.sin() * axis.theta0.sin();
     nearest / curvature.max(1.0).sqrt()
@@ -244,10 +248,16 @@ fn sample_analytic_rho(u: f64, v: f64, rho_max: f64) -> f64 {
     }
 }
 
+/// Whether the scene has circles to splat along: not with the sun at the
+/// observer's zenith or nadir (see `SunAxis::new`).
+pub fn has_circles(observer_m: DVec3, sun_direction: DVec3) -> bool {
+    SunAxis::new(observer_m, sun_direction, 0.0, 0.0).is_some()
+}
+
 /// Splats the multiply scattered light of one scene for one camera.
 pub struct CircleSplatter {
     axis: SunAxis,
-    rho_max: f64,
+    rho_max_m: f64,
     /// Bin edges in ρ (m).
     rho_edges: Vec<f64>,
     /// Probability of each (ρ, φ) bin, row-major in ρ; empty if nothing in
@@ -353,7 +363,7 @@ impl CircleSplatter {
         };
         Some(Self {
             axis,
-            rho_max,
+            rho_max_m: rho_max,
             rho_edges,
             bins,
             cdf,
@@ -362,7 +372,7 @@ impl CircleSplatter {
 
     /// Density of (ρ, φ) per dρ dφ.
     fn polar_density(&self, rho: f64, phi: f64) -> f64 {
-        let analytic = analytic_rho_density(rho, self.rho_max) / (2.0 * PI);
+        let analytic = analytic_rho_density(rho, self.rho_max_m) / (2.0 * PI);
         if self.bins.is_empty() {
             return analytic;
         }
@@ -389,15 +399,15 @@ impl CircleSplatter {
             let rho = self.rho_edges[i] + v * (self.rho_edges[i + 1] - self.rho_edges[i]);
             (rho, (j as f64 + w) / TABLE_PHI_BINS as f64 * 2.0 * PI)
         } else {
-            (sample_analytic_rho(u, v, self.rho_max), w * 2.0 * PI)
+            (sample_analytic_rho(u, v, self.rho_max_m), w * 2.0 * PI)
         }
     }
 
     /// One path and its splats (at most [`SPLATS_PER_WALK`]) into `out`;
     /// each splat's XYZ is the path's estimate for its pixel (the film
-    /// divides by the number of paths). `lanes`' wavelengths were drawn
-    /// with densities `wavelength_pdfs`; `xyz_bar` gives the colour-matching
-    /// functions. Returns the number of splats discarded as not finite.
+    /// divides by the number of paths). `wavelength_weights[j]` turns lane
+    /// j's radiance into XYZ (K_m x̄ȳz̄(λ) / (its density × the lanes)).
+    /// Returns the number of splats discarded as not finite.
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &self,
@@ -488,6 +498,7 @@ mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
     use crate::render::direction_from_az_el;
+    use crate::render::guide::SkyGuide;
 
     fn axis_for(sun_elevation_deg: f64) -> SunAxis {
         let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
@@ -586,6 +597,62 @@ mod tests {
                 "{estimate} against {exact}"
             );
         }
+    }
+
+    #[test]
+    fn points_follow_their_density() {
+        // E[g/p] = ∫ g over the (ρ, φ) plane for the points a twilight
+        // splatter draws (table and analytic parts), with g smooth and
+        // lopsided in φ; and for the analytic sampler alone.
+        let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
+        let sun = direction_from_az_el(30.0, -4.0);
+        let options = crate::render::IntegratorOptions::default().resolved(-4.0);
+        let guide = SkyGuide::new(&medium, sun);
+        let integrator = Integrator::new(&medium, &options, sun).with_sky_guide(&guide);
+        let camera = Camera::new(&crate::scene::CameraParams::default(), 64, 32);
+        let observer = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2.0);
+        let splatter =
+            CircleSplatter::new(&medium, &integrator, Some(&guide), &camera, observer).unwrap();
+        assert!(!splatter.bins.is_empty());
+        let rho_max = splatter.rho_max_m;
+        let scale = 50e3;
+        let g = |rho: f64, phi: f64| {
+            if rho < rho_max {
+                (-rho / scale).exp() * (1.5 + phi.cos())
+            } else {
+                0.0
+            }
+        };
+        let exact = 2.0 * PI * 1.5 * scale * (1.0 - (-rho_max / scale).exp());
+        let mut rng = Rng::new(17, 0);
+        let n = 400_000u32;
+        let (mut sum, mut sum2) = (0.0, 0.0);
+        for _ in 0..n {
+            let (rho, phi) = splatter.sample_polar(&mut rng);
+            let v = g(rho, phi) / splatter.polar_density(rho, phi);
+            sum += v;
+            sum2 += v * v;
+        }
+        let mean = sum / f64::from(n);
+        let se = ((sum2 / f64::from(n) - mean * mean) / f64::from(n)).sqrt();
+        assert!(
+            (mean - exact).abs() < 4.0 * se,
+            "{mean} against {exact} (SE {se})"
+        );
+        assert!(se < 0.01 * exact, "SE {se}");
+        // The analytic part alone: ∫ 1 dρ over [0, ρ_max].
+        let mut sum = 0.0;
+        for _ in 0..n {
+            let rho = sample_analytic_rho(rng.uniform(), rng.uniform(), rho_max);
+            if rho < rho_max {
+                sum += 1.0 / analytic_rho_density(rho, rho_max);
+            }
+        }
+        let mean = sum / f64::from(n);
+        assert!(
+            (mean / rho_max - 1.0).abs() < 0.02,
+            "{mean} against {rho_max}"
+        );
     }
 
     #[test]

@@ -5,6 +5,13 @@
 //! weight set by the sample's pass alone (the draft's by the sun's
 //! elevation, `super::draft_weight`; 1 otherwise) and the number of samples
 //! by nothing the pixel's own samples influence, so the mean is unbiased.
+//! With the renderer splatting along the circles of symmetry
+//! (`super::circles`), the film also holds each pixel's sum of splats and
+//! the number of paths splatted, and a pixel's value is its samples' mean
+//! plus the splats' sum over the paths; a row that holds only the draft
+//! pass shows the draft alone, which it drops when its first full pass
+//! starts (the draft estimates every order, later samples only what is not
+//! splatted).
 //!
 //! **Adaptive sampling.** After the first full pass the renderer gives the
 //! film a plan (`Film::plan_samples`): every later pass takes 1–16 samples

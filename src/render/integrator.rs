@@ -221,12 +221,14 @@ pub struct IntegratorOptions {
     pub control_variate: Option<bool>,
     /// Multiply scattered light splatted along the scene's circles of
     /// symmetry ([`super::circles`]): the camera's own paths keep single
-    /// scattering and the ground's light, and walks started anywhere in the
-    /// visible air carry the rest to every pixel their point's circle about
-    /// the sun's axis crosses. Needs `camera_samples` > 0 and
-    /// `next_event_estimation`. Unset (the default): on with the sun below
-    /// [`CIRCLE_SPLATTING_ELEVATION_DEG`] (see [`Self::resolved`]); an
-    /// integrator built directly reads unset as off.
+    /// scattering and the ground's light, and paths started anywhere in the
+    /// visible air carry the rest to the pixels of 32 points on their
+    /// start's circle about the sun's axis. Needs `camera_samples` > 0,
+    /// `next_event_estimation` and the observer inside the atmosphere.
+    /// Unset (the default): on with the sun below
+    /// [`CIRCLE_SPLATTING_ELEVATION_DEG`] (see [`Self::resolved`]) and the
+    /// observer in the air; an integrator built directly reads unset as
+    /// off.
     pub circle_splatting: Option<bool>,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
@@ -310,9 +312,10 @@ pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
 pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
 /// Below this sun elevation (at the observer)
 /// [`IntegratorOptions::circle_splatting`] is on by default: at twilight
-/// (−4°) 0.46× the variance × CPU time of the camera's own branches
-/// (fixed passes, `BENCHMARKS.md`, session 20); at sunset (2°) and midday
-/// about even.
+/// (−4°) the camera's own branches need 1.24× the time to equal noise
+/// (median of five bench runs, 0.97–1.52; `BENCHMARKS.md`, session 20).
+/// Above the horizon it loses: switched on, sunset needs 2.3× and midday
+/// 2.6× the time (the bench's ablation).
 pub const CIRCLE_SPLATTING_ELEVATION_DEG: f64 = 0.0;
 /// [`IntegratorOptions::sky_guide`] with the sun above the horizon: at
 /// twilight before roulette and splitting, 0.74–0.90× the time to equal
@@ -697,7 +700,7 @@ impl<'a> Integrator<'a> {
     /// Camera rays no longer branch from the air (only from the ground):
     /// the film gets that light from [`super::circles`] instead.
     #[must_use]
-    pub fn with_circle_splatting(mut self) -> Self {
+    pub(crate) fn with_circle_splatting(mut self) -> Self {
         self.splatting = true;
         self
     }

@@ -42,10 +42,10 @@ use sunlight::CameraDensities;
 /// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
 const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
 /// Paths splatted per pass, per pixel ([`circles`]). At twilight, in the
-/// bench (256×128, 10 s): 1: 7.74 %, 2: 7.07–7.82 %, 3: 6.55–8.28 % (five
-/// runs, time ratio of the camera's own branches 0.97–1.34), 4: 7.19 %:
-/// with more, the camera's own samples (single scattering, the ground) get
-/// too few passes (`BENCHMARKS.md`, session 20).
+/// bench (256×128, 10 s): 1: 7.74 %, 2: 7.07–7.82 %, 3: 6.55–7.43 %
+/// (five runs), 4: 7.19 %: with more, the camera's own samples (single
+/// scattering, the ground) get too few passes (`BENCHMARKS.md`, session
+/// 20).
 const SPLAT_PATHS_PER_PIXEL: u64 = 3;
 
 /// (√5 − 1)/2: the additive recurrence with this step is the most evenly
@@ -152,8 +152,10 @@ pub struct PassStats {
     pub completed: bool,
     /// Camera paths traced.
     pub paths: u64,
-    /// Samples discarded as non-finite (or negative without the control
-    /// variate).
+    /// Paths splatted along the circles of symmetry ([`circles`]).
+    pub splat_paths: u64,
+    /// Samples (and splats) discarded as non-finite (or negative without
+    /// the control variate).
     pub discarded: u64,
 }
 
@@ -220,9 +222,14 @@ impl Renderer {
             }),
             draft_weight: draft_weight(scene.sun.elevation_deg),
             mirror: mirror_pairs(scene),
+            // Without circles (the sun at the zenith or nadir), or from
+            // above the air (where the scene refuses it when asked for),
+            // the camera's branches keep every order.
             splatting: options.circle_splatting == Some(true)
                 && options.camera_samples > 0
-                && options.next_event_estimation,
+                && options.next_event_estimation
+                && scene.observer.altitude_m < scene.atmosphere.top_altitude_m
+                && circles::has_circles(observer_m, sun_direction),
             circles: OnceLock::new(),
             draft_options: IntegratorOptions {
                 camera_samples: 0,
@@ -454,8 +461,8 @@ impl Renderer {
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> PassStats {
         assert!(
-            film.mirror == self.mirror,
-            "render_pass: a film from Renderer::new_film (its mirror pairs) is needed"
+            film.mirror == self.mirror && film.splats() == self.splatting,
+            "render_pass: a film from Renderer::new_film (its mirror pairs, its splat layer) is needed"
         );
         if self.scene.render.adaptive_sampling
             && pass == ADAPTIVE_FROM_PASS
@@ -472,7 +479,7 @@ impl Renderer {
         }
         let width = film.width as usize;
         let discarded = AtomicU64::new(splat_discarded);
-        let paths = AtomicU64::new(splat_paths);
+        let paths = AtomicU64::new(0);
         let weight = self.pass_weight(pass);
         let planned = film.is_planned();
         let splats = film.splats();
@@ -533,6 +540,7 @@ impl Renderer {
         PassStats {
             completed: film.row_passes.iter().all(|&p| p > pass),
             paths: paths.into_inner(),
+            splat_paths,
             discarded,
         }
     }
@@ -551,7 +559,9 @@ impl Renderer {
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> (u64, u64) {
         const CHUNK: u64 = 256;
-        const BATCH: u64 = 32;
+        // Chunks run in parallel between checks for cancellation; their
+        // number does not change the image (splats are added in order).
+        let batch = 8 * rayon::current_num_threads() as u64;
         let splatter = self.circles.get_or_init(|| {
             CircleSplatter::new(
                 &self.medium,
@@ -570,7 +580,7 @@ impl Renderer {
         let (mut paths, mut discarded) = (0, 0);
         let mut chunk = 0;
         while chunk < chunks && !cancelled() {
-            let end = (chunk + BATCH).min(chunks);
+            let end = (chunk + batch).min(chunks);
             let batch: Vec<(Vec<Splat>, u64, u64)> = (chunk..end)
                 .into_par_iter()
                 .map(|c| {
