@@ -968,13 +968,18 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         if name != PREVIEW {
             for variant in &variants {
                 eprintln!("bench: {name}: ablation {}", variant.name());
-                let s = variant.apply(scene)?;
-                // A listed switch the scene cannot take (circle splatting
-                // from above the air) is left out of its table.
-                if let Err(e) = s.validate() {
-                    eprintln!("bench: {name}: ablation {} left out: {e}", variant.name());
-                    continue;
-                }
+                // A switch the scene cannot take (circle splatting from
+                // above the air) is left out of its table.
+                let s = match variant.apply(scene).and_then(|s| {
+                    s.validate().map_err(|e| e.to_string())?;
+                    Ok(s)
+                }) {
+                    Ok(s) => s,
+                    Err(e) => {
+                        eprintln!("bench: {name}: ablation {} left out: {e}", variant.name());
+                        continue;
+                    }
+                };
                 let v = pool.install(|| measure_noise(&s, budget_s, seed))?;
                 let ratio =
                     (v.noise * v.noise * v.seconds / (run.noise * run.noise * run.seconds)).sqrt();

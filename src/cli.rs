@@ -503,7 +503,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
                 format!(" ({})", notes.join("; "))
             };
             outln!(
-                "{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M paths/s), {discarded} samples discarded -> {}",
+                "{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M camera paths/s), {discarded} samples discarded -> {}",
                 scene.render.width,
                 scene.render.height,
                 paths as f64 / seconds / 1e6,

@@ -125,7 +125,7 @@ impl Default for CameraParams {
 pub const MAX_SPP: u32 = 1 << 20;
 /// Most pixels a render may have: 16384 × 8192, the largest panoramas in
 /// common use. Memory grows with the pixels (0.78 GiB peak for an 8192 ×
-/// 4096 export, `BENCHMARKS.md`), so this is about 3 GiB, 1.6 GiB more with
+/// 4096 export, `BENCHMARKS.md`), so this is about 3 GiB, 1.5 GiB more with
 /// the sun below the horizon (the film's splat layer,
 /// `render::circles`); a much larger image would fail to allocate, which
 /// aborts the program.

@@ -687,8 +687,11 @@ impl SkyApp {
                         "Samples per pixel accumulated / target (a draft is a quick \
                          low-resolution first look after a change)",
                     );
-                    ui.label(format!("{:.2} M paths/s", f.paths_per_second() / 1e6))
-                        .on_hover_text("Camera paths traced per second");
+                    ui.label(format!(
+                        "{:.2} M camera paths/s",
+                        f.paths_per_second() / 1e6
+                    ))
+                    .on_hover_text("Camera paths traced per second");
                     ui.label(format!("{:.1} s", f.elapsed.as_secs_f64()))
                         .on_hover_text("Time since the image started accumulating");
                     ui.label(format!("{} discarded", f.discarded))

@@ -126,8 +126,8 @@ pub struct Film {
     /// Passes the row took under the plan (each of a pixel's m samples has
     /// weight 1, so the pixel's weight is the row's plus (m − 1) per pass).
     pub(crate) row_planned_passes: Vec<u32>,
-    /// Samples discarded as non-finite (or negative without the control
-    /// variate).
+    /// Samples (and splats) discarded as non-finite (or negative without
+    /// the control variate).
     pub discarded: u64,
     /// Pixels read together with their mirror images; `None`: each alone.
     pub(crate) mirror: Option<Mirror>,

@@ -561,7 +561,8 @@ impl Renderer {
         const CHUNK: u64 = 256;
         // Chunks run in parallel between checks for cancellation; their
         // number does not change the image (splats are added in order).
-        let batch = 8 * rayon::current_num_threads() as u64;
+        // Capped: each holds up to CHUNK × 32 splats (256 KiB) until added.
+        let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
         let splatter = self.circles.get_or_init(|| {
             CircleSplatter::new(
                 &self.medium,
@@ -580,7 +581,7 @@ impl Renderer {
         let (mut paths, mut discarded) = (0, 0);
         let mut chunk = 0;
         while chunk < chunks && !cancelled() {
-            let end = (chunk + batch).min(chunks);
+            let end = (chunk + chunks_per_batch).min(chunks);
             let batch: Vec<(Vec<Splat>, u64, u64)> = (chunk..end)
                 .into_par_iter()
                 .map(|c| {
@@ -745,6 +746,39 @@ mod tests {
             (alone.pixel, alone.stride, alone.offset),
             (2 * 26 + 3, 1, 0)
         );
+    }
+
+    #[test]
+    fn splatting_where_the_scene_has_circles_and_the_observer_is_in_the_air() {
+        let small = |preset: &str| {
+            let mut scene = Scene::preset(preset).unwrap();
+            scene.render.width = 16;
+            scene.render.height = 8;
+            scene
+        };
+        // Twilight: the draft pass splats nothing, every full pass 3 paths
+        // per pixel.
+        let twilight = Renderer::new(&small("twilight")).unwrap();
+        let mut film = twilight.new_film();
+        assert!(film.splats());
+        let stats: Vec<PassStats> = (0..3)
+            .map(|pass| twilight.render_pass(&mut film, pass, &|| false))
+            .collect();
+        assert_eq!(stats[0].splat_paths, 0);
+        for s in &stats[1..] {
+            assert_eq!(s.splat_paths, 16 * 8 * SPLAT_PATHS_PER_PIXEL);
+        }
+        assert_eq!(film.splat_paths, 2 * 16 * 8 * SPLAT_PATHS_PER_PIXEL);
+        // The sun below the horizon but the observer above the air, or the
+        // sun at the nadir: unset means off.
+        let mut space = small("space");
+        space.sun.elevation_deg = -4.0;
+        assert!(!Renderer::new(&space).unwrap().new_film().splats());
+        let mut nadir = small("twilight");
+        nadir.sun.elevation_deg = -90.0;
+        assert!(!Renderer::new(&nadir).unwrap().new_film().splats());
+        // By day: off.
+        assert!(!Renderer::new(&small("sunset")).unwrap().new_film().splats());
     }
 
     /// The sunset preset at 24×12, with adaptive sampling on or off, each
