@@ -433,14 +433,12 @@ impl CircleSplatter {
         let point_density = self.polar_density(rho, phi) * axis.r0_m / rho;
         let positions = arc_positions(half, cauchy_scale(axis, r, theta), rng.uniform());
         let y0 = axis.point(r, theta, 0.0);
-        // Each position's camera direction, turned back into y₀'s frame.
-        let camera_dirs: [DVec3; SPLATS_PER_WALK] = std::array::from_fn(|k| {
-            let psi = positions[k].0;
-            axis.rotate(
-                (axis.point(r, theta, psi) - axis.observer_m).normalize(),
-                -psi,
-            )
-        });
+        // Each position's offset from the observer, and its camera
+        // direction turned back into y₀'s frame.
+        let offsets: [DVec3; SPLATS_PER_WALK] =
+            std::array::from_fn(|k| axis.point(r, theta, positions[k].0) - axis.observer_m);
+        let camera_dirs: [DVec3; SPLATS_PER_WALK] =
+            std::array::from_fn(|k| axis.rotate(offsets[k].normalize(), -positions[k].0));
         let c = integrator.medium.coefficients(r, lanes);
         let Some((d0, direction_pdf, radiance)) =
             integrator.splat_walk(y0, &camera_dirs, &c, lanes, rng)
@@ -452,8 +450,9 @@ impl CircleSplatter {
         }
         let (width, height) = camera.size();
         let mut discarded = 0;
-        for (&(psi, position_density), &cam_dir) in positions.iter().zip(&camera_dirs) {
-            let to = axis.point(r, theta, psi) - axis.observer_m;
+        for ((&(_, position_density), &cam_dir), &to) in
+            positions.iter().zip(&camera_dirs).zip(&offsets)
+        {
             let t = to.length();
             let dir = to / t;
             let per_sr = camera.pixels_per_sr(dir);

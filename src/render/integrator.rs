@@ -829,12 +829,7 @@ impl<'a> Integrator<'a> {
             return None;
         }
         let opts = self.options;
-        let at = self
-            .guide
-            .filter(|g| {
-                opts.sky_guide() > 0.0 && (opts.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
-            })
-            .map(|g| g.at(self.medium, x));
+        let at = self.direction_guide(x);
         let guides = at.as_ref().is_some_and(GuideAt::guides);
         let g = if guides { opts.sky_guide() } else { 0.0 };
         let alpha = opts.sun_lobe();
@@ -1592,6 +1587,18 @@ impl<'a> Integrator<'a> {
         }
     }
 
+    /// The guide at `x` where it draws scattering directions there
+    /// ([`IntegratorOptions::sky_guide`], at sunlit points only with
+    /// [`IntegratorOptions::sky_guide_sunlit`]).
+    fn direction_guide(&self, x: DVec3) -> Option<GuideAt<'a>> {
+        let opts = self.options;
+        self.guide
+            .filter(|g| {
+                opts.sky_guide() > 0.0 && (opts.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
+            })
+            .map(|g| g.at(self.medium, x))
+    }
+
     /// Density (sr⁻¹) of `dir` under the scattering directions' mixture:
     /// `phase` (the phase-function part's density, already evaluated),
     /// mixed with the lobe about the sun ([`IntegratorOptions::sun_lobe`])
@@ -1638,13 +1645,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         rng: &mut Rng,
     ) -> (DVec3, f64, Option<GuideAt<'a>>) {
-        let mut at = self
-            .guide
-            .filter(|g| {
-                self.options.sky_guide() > 0.0
-                    && (self.options.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
-            })
-            .map(|g| g.at(self.medium, x));
+        let mut at = self.direction_guide(x);
         let guides = at.as_ref().is_some_and(GuideAt::guides);
         let g = if guides {
             self.options.sky_guide()
