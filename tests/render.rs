@@ -401,19 +401,21 @@ fn circle_splatting_leaves_the_sky_alone() {
     // spread of whole-sky means over independent seeds. Per preset (the
     // walks delta-tracked by day, through segment estimates at twilight)
     // and per band of elevations (a wrong pixel Jacobian would tilt the
-    // sky), the means with and without splatting agree within 4 standard
-    // errors, which are below 2.5 % of the sky (~1 %: a bias above ~5 %
-    // fails).
+    // sky; the top row, which reaches the pole, is left to the camera's
+    // branches), the means with and without splatting agree within 4
+    // standard errors, which are below 2.5 % of the sky (~1 %: a bias above
+    // ~5 % fails; 4 % for the top row alone).
     for preset in ["twilight", "midday"] {
         let (width, height) = (32u32, 16u32);
         let base = small(preset, width, height, 12);
         let camera = skyrender::render::Camera::new(&base.camera, width, height);
         let sun =
             skyrender::render::direction_from_az_el(base.sun.azimuth_deg, base.sun.elevation_deg);
-        // Bands of sky rows (away from the sun): 0–3 (high), 4–7 (low).
+        // Bands of sky rows (away from the sun): 0 (the pole's), 1–3
+        // (high), 4–7 (low).
         let band_means = |scene: &Scene| {
             let image = render(scene, 2);
-            let mut sums = [(0.0, 0.0); 2];
+            let mut sums = [(0.0, 0.0); 3];
             for y in 0..height / 2 {
                 for x in 0..width {
                     let dir = camera
@@ -423,7 +425,7 @@ fn circle_splatting_leaves_the_sky_alone() {
                         continue;
                     }
                     let p = image[(y * width + x) as usize];
-                    let band = &mut sums[(y / 4) as usize];
+                    let band = &mut sums[usize::from(y > 0) + usize::from(y > 3)];
                     band.0 += f64::from(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
                     band.1 += 1.0;
                 }
@@ -431,7 +433,7 @@ fn circle_splatting_leaves_the_sky_alone() {
             sums.map(|(s, n)| s / n)
         };
         let seeds = 6;
-        let runs = |splatting: bool| -> Vec<[f64; 2]> {
+        let runs = |splatting: bool| -> Vec<[f64; 3]> {
             (0..seeds)
                 .map(|s| {
                     let mut scene = base.clone();
@@ -442,8 +444,8 @@ fn circle_splatting_leaves_the_sky_alone() {
                 .collect()
         };
         let (on, off) = (runs(true), runs(false));
-        for band in 0..2 {
-            let stats = |v: &[[f64; 2]]| {
+        for band in 0..3 {
+            let stats = |v: &[[f64; 3]]| {
                 let n = v.len() as f64;
                 let mean = v.iter().map(|m| m[band]).sum::<f64>() / n;
                 let var = v.iter().map(|m| (m[band] - mean).powi(2)).sum::<f64>() / (n - 1.0);
@@ -455,8 +457,9 @@ fn circle_splatting_leaves_the_sky_alone() {
                 (m_on - m_off).abs() < 4.0 * se,
                 "{preset}, band {band}: {m_on} with splatting, {m_off} without (SE {se})"
             );
+            let limit = if band == 0 { 0.04 } else { 0.025 };
             assert!(
-                se < 0.025 * m_off,
+                se < limit * m_off,
                 "{preset}, band {band}: SE {se} of {m_off}"
             );
         }

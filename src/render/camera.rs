@@ -28,6 +28,10 @@ pub fn direction_from_az_el(azimuth_deg: f64, elevation_deg: f64) -> DVec3 {
     DVec3::new(sa * ce, ca * ce, se)
 }
 
+/// The largest spread of [`Camera::pixels_per_sr`] over a pixel's square
+/// that [`Camera::pixel_density_bounded`] accepts.
+pub const MAX_PIXEL_DENSITY_RATIO: f64 = 4.0;
+
 #[derive(Clone, Debug)]
 pub struct Camera {
     kind: CameraKind,
@@ -210,6 +214,42 @@ impl Camera {
         }
     }
 
+    /// Whether [`Self::pixels_per_sr`] (J) stays within
+    /// [`MAX_PIXEL_DENSITY_RATIO`] of itself over pixel (`x`, `y`)'s square:
+    /// not in an equirect map's first and last rows, which reach its poles
+    /// (J ∝ 1/cos el; from the second row on J varies at most 2×), nor where
+    /// a fisheye's θ / sin θ climbs toward the nadir of a near-360° circle.
+    /// Light splatted into a pixel is weighted by J where it lands, and ∫ J²
+    /// dω diverges (logarithmically) at a pole: one splat a hundredth of a
+    /// degree from it outweighed the rest of a twilight image's splats. The
+    /// renderer leaves such pixels to the camera's own paths.
+    pub fn pixel_density_bounded(&self, x: u32, y: u32) -> bool {
+        match self.kind {
+            CameraKind::Equirect => y > 0 && f64::from(y) + 1.0 < self.height,
+            // J ∝ 1/z³ changes little across a pixel at any field of view
+            // the scene accepts.
+            CameraKind::Perspective => true,
+            CameraKind::Fisheye => {
+                let half_side = self.width.min(self.height) / 2.0;
+                let dx = (f64::from(x) + 0.5 - self.width / 2.0).abs();
+                let dy = (f64::from(y) + 0.5 - self.height / 2.0).abs();
+                // The square's nearest and farthest points from the centre
+                // (J grows with the radius), as zenith angles.
+                let zenith = |r: f64| (r / half_side).min(1.0) * self.half_fov_rad;
+                let near = zenith((dx - 0.5).max(0.0).hypot((dy - 0.5).max(0.0)));
+                let far = zenith((dx + 0.5).hypot(dy + 0.5));
+                let ratio = |theta: f64| {
+                    if theta > 1e-6 {
+                        theta / theta.sin()
+                    } else {
+                        1.0
+                    }
+                };
+                far < PI && ratio(far) <= MAX_PIXEL_DENSITY_RATIO * ratio(near)
+            }
+        }
+    }
+
     /// Image position (pixels) where direction `dir` appears, if it does.
     /// Used to check the mappings and to mark the sun in the preview.
     pub fn project(&self, dir: DVec3) -> Option<(f64, f64)> {
@@ -268,6 +308,76 @@ mod tests {
             w,
             h,
         )
+    }
+
+    #[test]
+    fn pixels_where_the_density_is_bounded() {
+        // Over a 17 × 17 grid on each accepted pixel's square (edges
+        // included), J's largest value is within the accepted ratio of its
+        // smallest (+5 % for the grid); the pixels left out are an equirect
+        // map's pole rows and the rim of a 360° fisheye, and nothing else.
+        let fisheye = |fov_deg: f64| {
+            Camera::new(
+                &CameraParams {
+                    kind: CameraKind::Fisheye,
+                    fov_deg,
+                    ..CameraParams::default()
+                },
+                48,
+                48,
+            )
+        };
+        let cases = [
+            ("equirect", camera(CameraKind::Equirect, 64, 32)),
+            ("perspective", camera(CameraKind::Perspective, 32, 24)),
+            ("fisheye 180°", fisheye(180.0)),
+            ("fisheye 360°", fisheye(360.0)),
+        ];
+        for (name, camera) in cases {
+            let (w, h) = camera.size();
+            let mut left_out = Vec::new();
+            for y in 0..h as u32 {
+                for x in 0..w as u32 {
+                    if !camera.pixel_density_bounded(x, y) {
+                        left_out.push((x, y));
+                        continue;
+                    }
+                    let (mut lo, mut hi) = (f64::INFINITY, 0.0_f64);
+                    for (i, j) in (0..17).flat_map(|i| (0..17).map(move |j| (i, j))) {
+                        let (px, py) = (
+                            f64::from(x) + f64::from(i) / 16.0,
+                            f64::from(y) + f64::from(j) / 16.0,
+                        );
+                        if let Some(dir) = camera.direction(px, py) {
+                            let density = camera.pixels_per_sr(dir);
+                            if density > 0.0 {
+                                (lo, hi) = (lo.min(density), hi.max(density));
+                            }
+                        }
+                    }
+                    assert!(
+                        hi <= 1.05 * MAX_PIXEL_DENSITY_RATIO * lo,
+                        "{name} ({x}, {y}): J from {lo} to {hi}"
+                    );
+                }
+            }
+            match name {
+                "equirect" => {
+                    assert_eq!(left_out.len(), 128);
+                    assert!(left_out.iter().all(|&(_, y)| y == 0 || y == 31));
+                }
+                "fisheye 360°" => {
+                    // A ring at the rim: pixels whose squares reach
+                    // within about a pixel of the circle's edge.
+                    assert!(!left_out.is_empty());
+                    for &(x, y) in &left_out {
+                        let r = (f64::from(x) + 0.5 - 24.0).hypot(f64::from(y) + 0.5 - 24.0);
+                        assert!(r > 20.0, "({x}, {y}) at radius {r}");
+                    }
+                }
+                _ => assert!(left_out.is_empty(), "{name}: {left_out:?}"),
+            }
+        }
     }
 
     #[test]

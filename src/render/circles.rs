@@ -77,7 +77,9 @@ const TABLE_SEED: u64 = 0x00c1_4c1e;
 const TABLE_WAVELENGTH_NM: f64 = 550.0;
 /// Cosine of the elevation below which the table stops following 1/cos el
 /// (the equirect map's pixels per steradian near its poles, whose rows are
-/// tiny; their splats follow it: only the table's importance is capped).
+/// tiny; their splats follow it: only the table's importance is capped; the
+/// rows that reach the poles take no splats, see
+/// [`Camera::pixel_density_bounded`]).
 const TABLE_MIN_COS: f64 = 0.05;
 
 /// One path's contribution to one pixel.
@@ -462,7 +464,10 @@ impl CircleSplatter {
             let Some((px, py)) = camera.project(dir) else {
                 continue;
             };
-            if !(0.0..width).contains(&px) || !(0.0..height).contains(&py) {
+            if !(0.0..width).contains(&px)
+                || !(0.0..height).contains(&py)
+                || !camera.pixel_density_bounded(px as u32, py as u32)
+            {
                 continue;
             }
             let Some(tr) = integrator.transmittance_to(axis.observer_m, dir, t, lanes, rng) else {

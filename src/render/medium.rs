@@ -741,12 +741,10 @@ impl Medium {
             return [0.0; LANES];
         }
         match (estimator, bounds) {
-            (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight) => {
-                let ends = (span.t_enter, span.t_exit);
-                self.column_table()
-                    .transmittance(self, origin, dir, ends, lanes, rng)
-                    .unwrap_or_else(|| self.chord_transmittance(origin, dir, span, lanes, rng))
-            }
+            (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight) => self
+                .column_table()
+                .transmittance(self, origin, dir, span, lanes, rng)
+                .unwrap_or_else(|| self.chord_transmittance(origin, dir, span, lanes, rng)),
             (TransmittanceEstimator::ChordResidualRatioTracking, Bounds::Tight) => {
                 self.chord_transmittance(origin, dir, span, lanes, rng)
             }
@@ -830,6 +828,14 @@ impl Medium {
     ) -> Option<Lanes> {
         if !to_end && checkpoints.is_empty() {
             return None;
+        }
+        if (estimator, bounds) == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight) {
+            let table = self.column_table();
+            if let Some(estimate) =
+                table.transmittance_along(self, origin, dir, span, lanes, checkpoints, to_end, rng)
+            {
+                return estimate;
+            }
         }
         let mut walk = self.walk(origin, dir, span, bounds);
         let mut transmittance = [1.0; LANES];
@@ -938,10 +944,10 @@ impl Medium {
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "kebab-case")]
 pub enum TransmittanceEstimator {
-    /// Residual ratio tracking (Novák et al. 2014); on rays to the top of the
-    /// atmosphere (shadow rays) the control comes from a table of columns
-    /// ([`super::columns`]), elsewhere it is each shell's chord of the
-    /// extinction.
+    /// Residual ratio tracking (Novák et al. 2014) with a table of columns
+    /// as control ([`super::columns`]), on shadow rays and segments alike;
+    /// where the table's residual bound expects more than two events (grazing
+    /// rays low down), each shell's chord of the extinction.
     #[default]
     ResidualRatioTracking,
     /// Residual ratio tracking with the shells' chords as control everywhere
@@ -1326,11 +1332,14 @@ mod tests {
 
     #[test]
     fn a_pass_to_the_checkpoints_only_gives_them_the_same_estimates() {
-        // Stopping after the last checkpoint changes nothing before it: the
-        // same random numbers give bit-identical checkpoint estimates.
+        // The walk through the shells: stopping after the last checkpoint
+        // changes nothing before it, the same random numbers give
+        // bit-identical checkpoint estimates. (The table's pass tracks at
+        // the rate its stretch needs, which differs; its estimates are
+        // checked against quadrature below.)
         let medium = medium();
         let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
-        let estimator = TransmittanceEstimator::ResidualRatioTracking;
+        let estimator = TransmittanceEstimator::ChordResidualRatioTracking;
         for (origin, dir) in test_rays(&medium) {
             let span = medium.span(origin, dir).unwrap();
             let length = span.t_exit - span.t_enter;
@@ -1460,24 +1469,22 @@ mod tests {
         type Estimate<'a> = &'a dyn Fn(&mut Rng) -> Lanes;
         // Against exp(−τ) with τ from fine quadrature of the medium's own
         // coefficients, within 4 standard errors (+2e-6 for the quadrature),
-        // and with little noise — with the column table's control (shadow
-        // rays, `transmittance`) and with the shells' chords (`transmittance`
-        // with the chord variant, and `transmittance_along`, which segment
-        // estimates use, to the end or to an in-scattering point).
+        // and with little noise — shadow rays (`transmittance`) with the
+        // column table's control and with the shells' chords, and segments
+        // (`transmittance_along`, to the end — the top or the ground — or to
+        // an in-scattering point only) with either.
         let medium = medium();
         let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
         let mut rng = Rng::new(5, 5);
-        for (origin, dir) in test_rays(&medium) {
+        let (medium, lanes) = (&medium, &lanes);
+        for (origin, dir) in test_rays(medium) {
             let span = medium.span(origin, dir).unwrap();
-            if span.hits_ground {
-                continue;
-            }
             // Optical depth from the span's start to `t_stop`, 2000 midpoint
             // steps per shell piece.
             let depth_to = |t_stop: f64| {
                 let mut depth = [0.0; LANES];
                 let mut walk = medium.walk(origin, dir, span, Bounds::Tight);
-                while let Some(piece) = walk.next_piece(&medium) {
+                while let Some(piece) = walk.next_piece(medium) {
                     let (t0, t1) = (piece.t0, piece.t1.min(t_stop));
                     if t1 <= t0 {
                         break;
@@ -1486,7 +1493,7 @@ mod tests {
                     let h = (t1 - t0) / f64::from(n);
                     for i in 0..n {
                         let t = t0 + h * (f64::from(i) + 0.5);
-                        let c = medium.coefficients((origin + dir * t).length(), &lanes);
+                        let c = medium.coefficients((origin + dir * t).length(), lanes);
                         for (j, d) in depth.iter_mut().enumerate() {
                             *d += c.extinction(j) * h;
                         }
@@ -1503,53 +1510,73 @@ mod tests {
             // rays low down fall back to the chords —; chords 0.013–0.042
             // and 0.056–0.15; the shell minimum as control gave 0.12–0.28
             // and up to 2.0).
-            let table = |rng: &mut Rng| {
-                let rrt = TransmittanceEstimator::ResidualRatioTracking;
-                medium.transmittance(origin, dir, &lanes, rrt, Bounds::Tight, rng)
+            let shadow = |estimator: TransmittanceEstimator| {
+                move |rng: &mut Rng| {
+                    medium.transmittance(origin, dir, lanes, estimator, Bounds::Tight, rng)
+                }
             };
-            let chords = |rng: &mut Rng| {
-                let rrt = TransmittanceEstimator::ChordResidualRatioTracking;
-                medium.transmittance(origin, dir, &lanes, rrt, Bounds::Tight, rng)
-            };
+            let (table, chords) = (
+                shadow(TransmittanceEstimator::ResidualRatioTracking),
+                shadow(TransmittanceEstimator::ChordResidualRatioTracking),
+            );
             // One pass of `transmittance_along` to `checkpoints` (and the end).
-            let pass = |checkpoints: &mut [(f64, Lanes)], to_end: bool, rng: &mut Rng| {
-                let rrt = TransmittanceEstimator::ResidualRatioTracking;
+            let pass = |estimator: TransmittanceEstimator,
+                        checkpoints: &mut [(f64, Lanes)],
+                        to_end: bool,
+                        rng: &mut Rng| {
                 medium.transmittance_along(
                     origin,
                     dir,
                     span,
-                    &lanes,
-                    rrt,
+                    lanes,
+                    estimator,
                     Bounds::Tight,
                     checkpoints,
                     to_end,
                     rng,
                 )
             };
-            let along = |rng: &mut Rng| pass(&mut [], true, rng).expect("a pass to the end");
+            let along = |estimator| {
+                move |rng: &mut Rng| pass(estimator, &mut [], true, rng).expect("a pass to the end")
+            };
             // To a point 40 % along the span only (a segment estimate's
             // in-scattering point).
-            let to_checkpoint = |rng: &mut Rng| {
-                let mut checkpoints = [(checkpoint, [0.0; LANES])];
-                assert!(pass(&mut checkpoints, false, rng).is_none());
-                checkpoints[0].1
+            let to_checkpoint = |estimator| {
+                move |rng: &mut Rng| {
+                    let mut checkpoints = [(checkpoint, [0.0; LANES])];
+                    assert!(pass(estimator, &mut checkpoints, false, rng).is_none());
+                    checkpoints[0].1
+                }
             };
-            let estimators: [(&str, Estimate, f64, &Lanes); 4] = [
-                ("table", &table, if steep { 0.02 } else { 0.2 }, &depth),
-                ("chords", &chords, if steep { 0.06 } else { 0.2 }, &depth),
+            let (table_along, chords_along) = (
+                along(TransmittanceEstimator::ResidualRatioTracking),
+                along(TransmittanceEstimator::ChordResidualRatioTracking),
+            );
+            let (table_to_checkpoint, chords_to_checkpoint) = (
+                to_checkpoint(TransmittanceEstimator::ResidualRatioTracking),
+                to_checkpoint(TransmittanceEstimator::ChordResidualRatioTracking),
+            );
+            let (table_limit, chords_limit) = if steep { (0.02, 0.06) } else { (0.2, 0.2) };
+            let mut estimators: Vec<(&str, Estimate, f64, &Lanes)> = vec![
+                ("table along", &table_along, table_limit, &depth),
+                ("chords along", &chords_along, chords_limit, &depth),
                 (
-                    "chords along",
-                    &along,
-                    if steep { 0.06 } else { 0.2 },
-                    &depth,
+                    "table to a checkpoint",
+                    &table_to_checkpoint,
+                    table_limit,
+                    &depth_checkpoint,
                 ),
                 (
-                    "to a checkpoint",
-                    &to_checkpoint,
-                    if steep { 0.06 } else { 0.2 },
+                    "chords to a checkpoint",
+                    &chords_to_checkpoint,
+                    chords_limit,
                     &depth_checkpoint,
                 ),
             ];
+            if !span.hits_ground {
+                estimators.push(("table", &table, table_limit, &depth));
+                estimators.push(("chords", &chords, chords_limit, &depth));
+            }
             for (name, estimate, limit, depth) in estimators {
                 // Rare events where the extinction nears the residual bound
                 // pull single estimates far down, which 4000 samples' standard

@@ -471,11 +471,14 @@ impl Renderer {
         {
             film.plan_samples();
         }
-        let mut integrator = self.integrator(pass);
+        let integrator = self.integrator(pass);
+        // Pixels the splats leave out (Camera::pixel_density_bounded) keep
+        // the camera's branches from the air.
+        let splatting =
+            (self.splatting && pass > 0).then(|| self.integrator(pass).with_circle_splatting());
         let (mut splat_paths, mut splat_discarded) = (0, 0);
-        if self.splatting && pass > 0 {
-            integrator = integrator.with_circle_splatting();
-            (splat_paths, splat_discarded) = self.splat_pass(film, pass, &integrator, cancelled);
+        if let Some(splatting) = &splatting {
+            (splat_paths, splat_discarded) = self.splat_pass(film, pass, splatting, cancelled);
         }
         let width = film.width as usize;
         let discarded = AtomicU64::new(splat_discarded);
@@ -514,8 +517,12 @@ impl Renderer {
                     } else {
                         (u64::from(pass), 1)
                     };
+                    let integrator = match &splatting {
+                        Some(s) if self.camera.pixel_density_bounded(x as u32, y as u32) => s,
+                        _ => &integrator,
+                    };
                     for sample in first..first + count {
-                        match self.sample_pixel(&integrator, x as u32, y as u32, sample) {
+                        match self.sample_pixel(integrator, x as u32, y as u32, sample) {
                             Some(xyz) => {
                                 for c in 0..3 {
                                     sum[c] += (weight * xyz[c]) as f32;
