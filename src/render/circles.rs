@@ -35,14 +35,16 @@
 //!   scattering and the guide's mean once-scattered light at the point,
 //!   [`SkyGuide::skylight`]) holds most of the density; an analytic
 //!   density in ρ, positive wherever a circle can be seen, the rest.
-//! * **Positions** ψ on the visible arc: most from a Cauchy density about
-//!   the point nearest the observer (t² ≈ d² + c ψ² there), the rest
-//!   uniform, combined by the balance heuristic (multi-sample MIS), all
-//!   stratified.
+//! * **Positions** ψ on the visible arc, in two rounds. Before the
+//!   direction: a few from a Cauchy density about the point nearest the
+//!   observer (t² ≈ d² + c ψ² there) and a few uniform. After it, most:
+//!   from the Cauchy density times the phase function toward the observer
+//!   at each position given d₀ ([`PhaseCells`]), so that an aerosol's
+//!   forward peak is drawn where it points at the observer. All combined
+//!   by the balance heuristic (multi-sample MIS), all stratified.
 //! * **Direction** d₀: the scene's usual mixture (the guide's table, the
-//!   sun lobe), with the phase function about each of the K camera
-//!   directions in equal shares (`Integrator::splat_walk`): a forward
-//!   peak seen by one y_k is found as often as that y_k needs it.
+//!   sun lobe), with the phase function about each of the first round's
+//!   camera directions in equal shares (`Integrator::splat_walk`).
 
 use std::f64::consts::PI;
 
@@ -57,8 +59,19 @@ use crate::rng::Rng;
 
 /// Positions along a circle per path.
 pub const SPLATS_PER_WALK: usize = 32;
-/// Of them, drawn from the Cauchy density about the observer's nearest point.
-const NEAR_SPLATS: usize = 24;
+/// Of them, drawn before the path's direction: from the Cauchy density
+/// about the observer's nearest point, and uniformly.
+const CAUCHY_SPLATS: usize = 4;
+const UNIFORM_SPLATS: usize = 4;
+const FIRST_SPLATS: usize = CAUCHY_SPLATS + UNIFORM_SPLATS;
+/// The rest, drawn after it: from the Cauchy density times the phase
+/// function toward the observer at each position ([`PhaseCells`]).
+const PHASE_SPLATS: usize = SPLATS_PER_WALK - FIRST_SPLATS;
+/// Cells of the phase-weighted density, uniform in the Cauchy quantile.
+const PHASE_CELLS: usize = 32;
+/// Share of the phase-weighted density spread evenly over its cells (a
+/// floor under the phase function's shape).
+const PHASE_FLOOR: f64 = 0.1;
 /// Share of the points drawn from the table (the rest: analytic in ρ).
 const TABLE_SHARE: f64 = 0.8;
 /// The analytic density in ρ: shares and scales (m) of two exponentials,
@@ -201,26 +214,114 @@ fn cauchy_scale(axis: &SunAxis, r_m: f64, theta: f64) -> f64 {
     nearest / curvature.max(1.0).sqrt()
 }
 
-/// The positions along the arc |ψ| ≤ `half` and their combined density
-/// (balance heuristic over the Cauchy and uniform draws; the estimate of a
-/// sum over positions divides each term by it).
-fn arc_positions(half: f64, scale: f64, u: f64) -> [(f64, f64); SPLATS_PER_WALK] {
-    let atan_half = (half / scale).atan();
-    let far = SPLATS_PER_WALK - NEAR_SPLATS;
-    let density = |psi: f64| {
-        NEAR_SPLATS as f64 * scale / (scale * scale + psi * psi) / (2.0 * atan_half)
-            + far as f64 / (2.0 * half)
-    };
-    std::array::from_fn(|k| {
-        let psi = if k < NEAR_SPLATS {
-            let v = (k as f64 + u) / NEAR_SPLATS as f64;
-            scale * (atan_half * (2.0 * v - 1.0)).tan()
+/// The visible arc |ψ| ≤ `half` of one circle and the Cauchy density
+/// a / (a² + ψ²) on it (normalised to the arc).
+#[derive(Clone, Copy, Debug)]
+struct Arc {
+    half: f64,
+    scale: f64,
+    atan_half: f64,
+}
+
+impl Arc {
+    fn new(half: f64, scale: f64) -> Self {
+        Self {
+            half,
+            scale,
+            atan_half: (half / scale).atan(),
+        }
+    }
+
+    /// ψ at quantile `v` of the Cauchy density.
+    fn cauchy(&self, v: f64) -> f64 {
+        self.scale * (self.atan_half * (2.0 * v - 1.0)).tan()
+    }
+
+    /// The Cauchy density's quantile of `psi`.
+    fn quantile(&self, psi: f64) -> f64 {
+        (0.5 * (1.0 + (psi / self.scale).atan() / self.atan_half)).clamp(0.0, 1.0)
+    }
+
+    fn cauchy_density(&self, psi: f64) -> f64 {
+        self.scale / (self.scale * self.scale + psi * psi) / (2.0 * self.atan_half)
+    }
+
+    /// The positions drawn before the path's direction, stratified by `u`:
+    /// [`CAUCHY_SPLATS`] Cauchy, then [`UNIFORM_SPLATS`] uniform.
+    fn first_positions(&self, u: f64) -> [f64; FIRST_SPLATS] {
+        std::array::from_fn(|k| {
+            if k < CAUCHY_SPLATS {
+                self.cauchy((k as f64 + u) / CAUCHY_SPLATS as f64)
+            } else {
+                let v = ((k - CAUCHY_SPLATS) as f64 + u) / UNIFORM_SPLATS as f64;
+                self.half * (2.0 * v - 1.0)
+            }
+        })
+    }
+
+    /// The positions' combined density at `psi` (balance heuristic over the
+    /// three kinds of draws, multi-sample MIS: the estimate of a sum over
+    /// positions divides each term by it).
+    fn density(&self, psi: f64, cells: &PhaseCells) -> f64 {
+        let cauchy = self.cauchy_density(psi);
+        CAUCHY_SPLATS as f64 * cauchy
+            + UNIFORM_SPLATS as f64 / (2.0 * self.half)
+            + PHASE_SPLATS as f64 * cells.density(self, psi, cauchy)
+    }
+}
+
+/// The phase-weighted density on an arc: the Cauchy density times weights
+/// constant over [`PHASE_CELLS`] cells uniform in its quantile — the phase
+/// function toward the observer at each cell's centre, given the path's
+/// direction, with a [`PHASE_FLOOR`]. An aerosol's forward peak seen by one
+/// position of many is then drawn where it is: with the direction's density
+/// alone (one mixture over all positions) that position's splat carried up
+/// to K times the others' weight, and those splats were most of the
+/// twilight sky's variance (`BENCHMARKS.md`, session 21).
+struct PhaseCells {
+    /// Probability of each cell.
+    probabilities: [f64; PHASE_CELLS],
+}
+
+impl PhaseCells {
+    /// From the (non-negative) phase function at each cell's centre.
+    fn new(weights: [f64; PHASE_CELLS]) -> Self {
+        let total: f64 = weights.iter().sum();
+        let even = 1.0 / PHASE_CELLS as f64;
+        let probabilities = if total > 0.0 && total.is_finite() {
+            weights.map(|w| (1.0 - PHASE_FLOOR) * w / total + PHASE_FLOOR * even)
         } else {
-            let v = ((k - NEAR_SPLATS) as f64 + u) / far as f64;
-            half * (2.0 * v - 1.0)
+            [even; PHASE_CELLS]
         };
-        (psi, density(psi))
-    })
+        Self { probabilities }
+    }
+
+    /// The quantile of each cell's centre.
+    fn centre(m: usize) -> f64 {
+        (m as f64 + 0.5) / PHASE_CELLS as f64
+    }
+
+    /// Density at `psi` on `arc`, given the Cauchy density `cauchy` there.
+    fn density(&self, arc: &Arc, psi: f64, cauchy: f64) -> f64 {
+        let m = ((arc.quantile(psi) * PHASE_CELLS as f64) as usize).min(PHASE_CELLS - 1);
+        self.probabilities[m] * PHASE_CELLS as f64 * cauchy
+    }
+
+    /// [`PHASE_SPLATS`] positions, stratified by `u` over the cells'
+    /// cumulative probabilities.
+    fn positions(&self, arc: &Arc, u: f64) -> [f64; PHASE_SPLATS] {
+        let mut m = 0;
+        let mut below = 0.0;
+        std::array::from_fn(|k| {
+            let v = (k as f64 + u) / PHASE_SPLATS as f64;
+            while m + 1 < PHASE_CELLS && below + self.probabilities[m] <= v {
+                below += self.probabilities[m];
+                m += 1;
+            }
+            let within = ((v - below) / self.probabilities[m]).clamp(0.0, 1.0);
+            arc.cauchy((m as f64 + within) / PHASE_CELLS as f64)
+        })
+    }
 }
 
 /// Density (per ρ, per φ-turn) of the analytic part.
@@ -433,28 +534,44 @@ impl CircleSplatter {
         }
         // Density per dr dθ: per dρ dφ × r₀ / ρ.
         let point_density = self.polar_density(rho, phi) * axis.r0_m / rho;
-        let positions = arc_positions(half, cauchy_scale(axis, r, theta), rng.uniform());
+        let arc = Arc::new(half, cauchy_scale(axis, r, theta));
         let y0 = axis.point(r, theta, 0.0);
-        // Each position's offset from the observer, and its camera
-        // direction turned back into y₀'s frame.
-        let offsets: [DVec3; SPLATS_PER_WALK] =
-            std::array::from_fn(|k| axis.point(r, theta, positions[k].0) - axis.observer_m);
-        let camera_dirs: [DVec3; SPLATS_PER_WALK] =
-            std::array::from_fn(|k| axis.rotate(offsets[k].normalize(), -positions[k].0));
+        // A position's offset from the observer, and its camera direction
+        // turned back into y₀'s frame.
+        let place = |psi: f64| {
+            let to = axis.point(r, theta, psi) - axis.observer_m;
+            (to, axis.rotate(to.normalize(), -psi))
+        };
+        let mut positions = [(0.0, DVec3::ZERO, DVec3::ZERO); SPLATS_PER_WALK];
+        for (slot, psi) in positions.iter_mut().zip(arc.first_positions(rng.uniform())) {
+            let (to, camera_dir) = place(psi);
+            *slot = (psi, to, camera_dir);
+        }
+        let first_dirs: [DVec3; FIRST_SPLATS] = std::array::from_fn(|k| positions[k].2);
         let c = integrator.medium.coefficients(r, lanes);
         let Some((d0, direction_pdf, radiance)) =
-            integrator.splat_walk(y0, &camera_dirs, &c, lanes, rng)
+            integrator.splat_walk(y0, &first_dirs, &c, lanes, rng)
         else {
             return 0;
         };
         if direction_pdf <= 0.0 || radiance[..lanes.active].iter().all(|&l| l == 0.0) {
             return 0;
         }
+        let cells = PhaseCells::new(std::array::from_fn(|m| {
+            let (_, camera_dir) = place(arc.cauchy(PhaseCells::centre(m)));
+            integrator.phase_mixture_pdf(&c, lanes, camera_dir.dot(d0))
+        }));
+        for (slot, psi) in positions[FIRST_SPLATS..]
+            .iter_mut()
+            .zip(cells.positions(&arc, rng.uniform()))
+        {
+            let (to, camera_dir) = place(psi);
+            *slot = (psi, to, camera_dir);
+        }
         let (width, height) = camera.size();
         let mut discarded = 0;
-        for ((&(_, position_density), &cam_dir), &to) in
-            positions.iter().zip(&camera_dirs).zip(&offsets)
-        {
+        for &(psi, to, cam_dir) in &positions {
+            let position_density = arc.density(psi, &cells);
             let t = to.length();
             let dir = to / t;
             let per_sr = camera.pixels_per_sr(dir);
@@ -564,16 +681,22 @@ mod tests {
 
     #[test]
     fn arc_positions_integrate_by_their_density() {
-        // Σ f(ψ_k)/density(ψ_k) is an unbiased estimate of ∫ f over the arc
-        // for any f; with f = 1 and f = the 1/t² shape, averaged over u.
+        // Σ f(ψ_k)/density(ψ_k) over both rounds of positions is an unbiased
+        // estimate of ∫ f over the arc for any f: with f = 1, the 1/t² shape
+        // and a smooth one, averaged over both rounds' stratification
+        // offsets, for even cell weights, a peaked set (one cell 1000×
+        // the rest) and a zero one (all floor).
         let (half, scale) = (0.3, 2e-4);
+        let arc = Arc::new(half, scale);
+        let mut peaked = [1.0; PHASE_CELLS];
+        peaked[PHASE_CELLS / 3] = 1000.0;
+        let cell_sets = [[1.0; PHASE_CELLS], peaked, [0.0; PHASE_CELLS]];
         for f in [
             (|_: f64| 1.0) as fn(f64) -> f64,
             |psi: f64| 2e-4 / (4e-8 + psi * psi),
             |psi: f64| psi.cos() * (1.0 + psi),
         ] {
             let exact = {
-                // Midpoint rule on a fine grid, refined near 0.
                 let n = 2_000_000u32;
                 (0..n)
                     .map(|i| {
@@ -585,22 +708,66 @@ mod tests {
                     * half
                     / f64::from(n)
             };
-            let trials = 4000u32;
-            let estimate = (0..trials)
-                .map(|i| {
-                    let u = (f64::from(i) + 0.5) / f64::from(trials);
-                    arc_positions(half, scale, u)
-                        .iter()
-                        .map(|&(psi, density)| f(psi) / density)
-                        .sum::<f64>()
-                })
-                .sum::<f64>()
-                / f64::from(trials);
+            for weights in cell_sets {
+                let cells = PhaseCells::new(weights);
+                let trials = 400u32;
+                let mut sum = 0.0;
+                for i in 0..trials {
+                    for j in 0..trials {
+                        let u = (f64::from(i) + 0.5) / f64::from(trials);
+                        let v = (f64::from(j) + 0.5) / f64::from(trials);
+                        let first = arc.first_positions(u);
+                        let second = cells.positions(&arc, v);
+                        sum += first
+                            .iter()
+                            .chain(&second)
+                            .map(|&psi| f(psi) / arc.density(psi, &cells))
+                            .sum::<f64>();
+                    }
+                }
+                let estimate = sum / f64::from(trials * trials);
+                assert!(
+                    (estimate / exact - 1.0).abs() < 2e-3,
+                    "{estimate} against {exact} (cells {:?})",
+                    &weights[..4]
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn phase_cells_draw_by_their_weights() {
+        // The second round's positions fall in each cell in proportion to
+        // its probability: over offsets u on a grid of 1000, within two
+        // per stratum (the grid's rounding at the cell's edges).
+        let arc = Arc::new(0.5, 1e-3);
+        let mut weights = [0.0; PHASE_CELLS];
+        for (m, w) in weights.iter_mut().enumerate() {
+            *w = (m as f64 * 0.7).sin().abs();
+        }
+        let cells = PhaseCells::new(weights);
+        assert!((cells.probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-12);
+        let trials = 1000;
+        let mut counts = [0usize; PHASE_CELLS];
+        for i in 0..trials {
+            let u = (f64::from(i) + 0.5) / f64::from(trials);
+            for psi in cells.positions(&arc, u) {
+                let m = (arc.quantile(psi) * PHASE_CELLS as f64) as usize;
+                counts[m.min(PHASE_CELLS - 1)] += 1;
+            }
+        }
+        for (m, (&count, p)) in counts.iter().zip(cells.probabilities).enumerate() {
+            let expected = p * (PHASE_SPLATS * trials as usize) as f64;
             assert!(
-                (estimate / exact - 1.0).abs() < 2e-3,
-                "{estimate} against {exact}"
+                (count as f64 - expected).abs() <= 2.0 * PHASE_SPLATS as f64,
+                "cell {m}: {count} against {expected}"
             );
         }
+        // The floor: no cell below PHASE_FLOOR / PHASE_CELLS.
+        assert!(cells
+            .probabilities
+            .iter()
+            .all(|&p| p >= PHASE_FLOOR / PHASE_CELLS as f64 - 1e-15));
     }
 
     #[test]

@@ -1674,7 +1674,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Density of [`Self::sample_phase_direction`] at cosine `mu`, per sr.
-    fn phase_mixture_pdf(
+    pub(crate) fn phase_mixture_pdf(
         &self,
         c: &super::medium::Coefficients,
         lanes: &SpectralLanes,
