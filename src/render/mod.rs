@@ -784,18 +784,21 @@ mod tests {
         let mut nadir = small("twilight");
         nadir.sun.elevation_deg = -90.0;
         assert!(!Renderer::new(&nadir).unwrap().new_film().splats());
-        // By day: off.
-        assert!(!Renderer::new(&small("sunset")).unwrap().new_film().splats());
+        // With the sun low (sunset, 2°): on; high (midday, 45°): off.
+        assert!(Renderer::new(&small("sunset")).unwrap().new_film().splats());
+        assert!(!Renderer::new(&small("midday")).unwrap().new_film().splats());
     }
 
     /// The sunset preset at 24×12, with adaptive sampling on or off, each
-    /// pixel read alone (no mirror pairs).
+    /// pixel read alone (no mirror pairs) from its camera samples alone (no
+    /// splats).
     fn small_sunset(adaptive_sampling: bool) -> Renderer {
         let mut scene = Scene::preset("sunset").unwrap();
         scene.render.width = 24;
         scene.render.height = 12;
         scene.render.adaptive_sampling = adaptive_sampling;
         scene.render.mirror_symmetry = false;
+        scene.render.integrator.circle_splatting = Some(false);
         Renderer::new(&scene).unwrap()
     }
 
