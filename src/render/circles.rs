@@ -414,14 +414,12 @@ impl CircleSplatter {
                 let y0 = axis.point(r, theta, 0.0);
                 let c = medium.coefficients(r, &lanes);
                 let light = guide.map_or(1.0, |g| g.skylight(medium, y0)) * c.scattering(0);
-                let scale = cauchy_scale(&axis, r, theta);
-                let atan_half = (half / scale).atan();
+                let arc = Arc::new(half, cauchy_scale(&axis, r, theta));
                 // ∫ dψ T / (t² cos el) by the Cauchy draws at stratum centres.
                 let mut integral = 0.0;
                 for k in 0..TABLE_NODES {
-                    let v = (k as f64 + 0.5) / TABLE_NODES as f64;
-                    let psi = scale * (atan_half * (2.0 * v - 1.0)).tan();
-                    let density = scale / (scale * scale + psi * psi) / (2.0 * atan_half);
+                    let psi = arc.cauchy((k as f64 + 0.5) / TABLE_NODES as f64);
+                    let density = arc.cauchy_density(psi);
                     let to = axis.point(r, theta, psi) - observer_m;
                     let t = to.length();
                     let dir = to / t;

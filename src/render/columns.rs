@@ -435,29 +435,20 @@ impl ColumnTable {
         std::array::from_fn(|p| vertical[p] / slant[p])
     }
 
-    /// C̃ for any cosine: a ray that starts downward is the whole chord of
-    /// its perigee less the part behind its start.
-    #[cfg(test)]
-    fn columns(&self, radius_m: f64, mu: f64) -> Profiles {
-        if mu >= 0.0 {
-            return self.columns_up(radius_m, mu);
-        }
-        let chord = self.columns_up(perigee_m(radius_m, mu), 0.0);
-        let behind = self.columns_up(radius_m, -mu);
-        std::array::from_fn(|p| 2.0 * chord[p] - behind[p])
-    }
-
-    /// The bound on |profile − control| along the ray from radius
-    /// `radius_m` with cosine `mu` (from its perigee on, if it starts
-    /// downward): the cells it crosses lie at or above its start's (or
-    /// perigee's) in both coordinates.
-    #[cfg(test)]
-    fn bound(&self, radius_m: f64, mu: f64) -> Profiles {
-        let cell = if mu >= 0.0 {
-            self.cell(radius_m, mu)
+    /// The bound on |profile − control| over the stretch of a ray from
+    /// (radius, cosine) `start` to `end`: the bound of its lowest point's
+    /// cell — its perigee if it passes one, else its lower end — as every
+    /// point of the stretch lies at or above that in altitude and |μ|, and
+    /// the table holds the largest over the cells at or above each.
+    fn stretch_bound(&self, (r0, mu0): (f64, f64), (r1, mu1): (f64, f64)) -> Profiles {
+        let (radius_m, mu) = if mu0 < 0.0 && mu1 > 0.0 {
+            (perigee_m(r0, mu0), 0.0)
+        } else if r1 < r0 {
+            (r1, mu1.abs())
         } else {
-            self.cell(perigee_m(radius_m, mu), 0.0)
+            (r0, mu0.abs())
         };
+        let cell = self.cell(radius_m, mu);
         self.bound[cell.i * COSINE_NODES + cell.k]
     }
 
@@ -583,18 +574,7 @@ impl ColumnTable {
             (r, x.dot(dir) / r)
         };
         let ((r0, mu0), (r1, mu1)) = (at(t_start), at(t_stop));
-        // The lowest point of the stretch: its perigee if it passes one,
-        // else its lower end; every point of the stretch lies at or above
-        // it in both altitude and |μ|, so that cell's bound holds.
-        let lowest = if mu0 < 0.0 && mu1 > 0.0 {
-            (perigee_m(r0, mu0), 0.0)
-        } else if r1 < r0 {
-            (r1, mu1.abs())
-        } else {
-            (r0, mu0.abs())
-        };
-        let cell = self.cell(lowest.0, lowest.1);
-        let bound = self.bound[cell.i * COSINE_NODES + cell.k];
+        let bound = self.stretch_bound((r0, mu0), (r1, mu1));
         let rate = lanes.residual_bound(bound, self.ozone_max_m3);
         if !(rate.is_finite() && rate * (t_stop - t_start) <= MAX_EXPECTED_EVENTS) {
             return None;
@@ -720,9 +700,15 @@ mod tests {
         dir: DVec3,
         span: Span,
     ) -> (Profiles, Profiles) {
-        let start = origin + dir * span.t_enter;
-        let (r, mu) = (start.length(), start.dot(dir) / start.length());
-        (table.columns(r, mu), table.bound(r, mu))
+        let at = |t: f64| {
+            let x = origin + dir * t;
+            (x.length(), x.dot(dir) / x.length())
+        };
+        let (start, end) = (at(span.t_enter), at(span.t_exit));
+        (
+            RayColumns::new(table, start.0, start.1).at(start.0, start.1),
+            table.stretch_bound(start, end),
+        )
     }
 
     /// Where `origin + t·dir` crosses radius `radius_m`, inside `span`.
