@@ -39,7 +39,7 @@
 //!   direction: a few from a Cauchy density about the point nearest the
 //!   observer (t² ≈ d² + c ψ² there) and a few uniform. After it, most:
 //!   from the Cauchy density times the phase function toward the observer
-//!   at each position given d₀ ([`PhaseCells`]), so that an aerosol's
+//!   at each position given d₀ (`PhaseCells`), so that an aerosol's
 //!   forward peak is drawn where it points at the observer. All combined
 //!   by the balance heuristic (multi-sample MIS), all stratified.
 //! * **Direction** d₀: the scene's usual mixture (the guide's table, the

@@ -549,7 +549,7 @@ impl ColumnTable {
     /// ray's C̃ = 2 C̃(perigee) − C̃(r, −μ) takes one perigee term per ray, so
     /// that it cancels exactly). `None` (before any random number is drawn)
     /// where the residual bound expects more than
-    /// [`MAX_EXPECTED_EVENTS`] events on the stretch to track.
+    /// `MAX_EXPECTED_EVENTS` (2) events on the stretch to track.
     #[allow(clippy::too_many_arguments)]
     pub fn transmittance_along(
         &self,
