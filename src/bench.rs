@@ -539,10 +539,13 @@ pub fn ablation_variants() -> Vec<Variant> {
             s.render.integrator.next_event_estimation = false;
         }),
         ("camera_samples=0", |s| {
-            s.render.integrator.camera_samples = 0;
+            s.render.integrator.camera_samples = Some(0);
         }),
         ("camera_samples=1", |s| {
-            s.render.integrator.camera_samples = 1;
+            s.render.integrator.camera_samples = Some(1);
+        }),
+        ("camera_samples=2", |s| {
+            s.render.integrator.camera_samples = Some(2);
         }),
         ("camera_branches=1", |s| {
             s.render.integrator.camera_branches = 1;

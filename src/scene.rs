@@ -385,7 +385,9 @@ impl Scene {
             check_count("sunlight samples", n as usize, 0, samples)?;
         }
         check_count("shadow samples", i.shadow_samples as usize, 0, samples)?;
-        check_count("camera samples", i.camera_samples as usize, 0, samples)?;
+        if let Some(n) = i.camera_samples {
+            check_count("camera samples", n as usize, 0, samples)?;
+        }
         check_count("camera branches", i.camera_branches as usize, 1, branches)?;
         if let Some(share) = i.sun_lobe {
             check_range("sun lobe", share, 0.0, 1.0)?;
@@ -413,7 +415,9 @@ impl Scene {
                 "needs the observer inside the atmosphere (altitude below its top)",
             ));
         }
-        if i.circle_splatting == Some(true) && (i.camera_samples == 0 || !i.next_event_estimation) {
+        if i.circle_splatting == Some(true)
+            && (i.camera_samples == Some(0) || !i.next_event_estimation)
+        {
             // The camera paths' share of the light is what their
             // next-event points estimate; without them nothing would.
             return Err(SceneError::new(

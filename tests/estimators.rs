@@ -493,7 +493,7 @@ fn camera_ray_densities_are_unbiased() {
                    paths: u32,
                    streams: u64| {
             let options = IntegratorOptions {
-                camera_samples,
+                camera_samples: Some(camera_samples),
                 camera_branches,
                 max_scattering_order: order,
                 ..IntegratorOptions::default()
@@ -590,7 +590,7 @@ fn sky_guide_is_unbiased() {
         for order in [Some(2), None] {
             let (reference, reference_se) = run(
                 IntegratorOptions {
-                    camera_samples: 0,
+                    camera_samples: Some(0),
                     sky_guide: Some(0.0),
                     forced_collision_depth: 0,
                     max_scattering_order: order,
@@ -732,7 +732,7 @@ fn the_control_variate_is_unbiased() {
         };
         let reference = run(
             IntegratorOptions {
-                camera_samples: 0,
+                camera_samples: Some(0),
                 sky_guide: Some(0.0),
                 forced_collision_depth: 0,
                 ..IntegratorOptions::default()
@@ -834,7 +834,7 @@ fn twilight_techniques_leave_the_mean_alone() {
         (
             "one camera point, one branch",
             IntegratorOptions {
-                camera_samples: 1,
+                camera_samples: Some(1),
                 camera_branches: 1,
                 ..default.clone()
             },

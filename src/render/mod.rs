@@ -184,12 +184,25 @@ impl Renderer {
             scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
         );
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
-        let options = scene.render.integrator.resolved(scene.sun.elevation_deg);
+        let mut options = scene.render.integrator.resolved(scene.sun.elevation_deg);
+        // Without circles (the sun at the zenith or nadir), or from above
+        // the air (where the scene refuses it when asked for), the camera's
+        // branches keep every order.
+        let splatting = options.circle_splatting == Some(true)
+            && options.camera_samples() > 0
+            && options.next_event_estimation
+            && scene.observer.altitude_m < scene.atmosphere.top_altitude_m
+            && circles::has_circles(observer_m, sun_direction);
+        options.camera_samples = Some(options.camera_samples.unwrap_or(if splatting {
+            integrator::SPLAT_CAMERA_SAMPLES
+        } else {
+            integrator::CAMERA_SAMPLES
+        }));
         // Camera branches drawn partly by the light the guide expects them
         // to find ([`IntegratorOptions::camera_importance`]), where camera
         // rays use their densities at all.
         let camera_importance = Some(options.camera_importance())
-            .filter(|&share| share > 0.0 && options.camera_samples > 0);
+            .filter(|&share| share > 0.0 && options.camera_samples() > 0);
         let sky_guide = {
             let i = &options;
             (i.sky_guide() > 0.0
@@ -222,17 +235,10 @@ impl Renderer {
             }),
             draft_weight: draft_weight(scene.sun.elevation_deg),
             mirror: mirror_pairs(scene),
-            // Without circles (the sun at the zenith or nadir), or from
-            // above the air (where the scene refuses it when asked for),
-            // the camera's branches keep every order.
-            splatting: options.circle_splatting == Some(true)
-                && options.camera_samples > 0
-                && options.next_event_estimation
-                && scene.observer.altitude_m < scene.atmosphere.top_altitude_m
-                && circles::has_circles(observer_m, sun_direction),
+            splatting,
             circles: OnceLock::new(),
             draft_options: IntegratorOptions {
-                camera_samples: 0,
+                camera_samples: Some(0),
                 control_variate: Some(false),
                 sky_guide: Some(0.0),
                 sunlight_samples: Some(0),
