@@ -52,6 +52,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::camera::Camera;
+use super::columns::FixedStart;
 use super::guide::SkyGuide;
 use super::integrator::Integrator;
 use super::medium::{Medium, SpectralLanes, LANES};
@@ -367,6 +368,9 @@ pub struct CircleSplatter {
     /// view had weight (then the analytic density alone).
     bins: Vec<f64>,
     cdf: Vec<f64>,
+    /// The column table's look-ups at the observer, where every splat's
+    /// ray to the camera starts.
+    observer: FixedStart,
 }
 
 impl CircleSplatter {
@@ -395,6 +399,7 @@ impl CircleSplatter {
             }))
             .collect();
         let lanes = SpectralLanes::new([TABLE_WAVELENGTH_NM; LANES], 1, medium, true);
+        let observer = FixedStart::new(medium.column_table(), observer_m);
         let up = observer_m.normalize();
         let mass: Vec<f64> = (0..TABLE_RHO_BINS * TABLE_PHI_BINS)
             .into_par_iter()
@@ -427,7 +432,7 @@ impl CircleSplatter {
                         continue;
                     }
                     let Some(tr) =
-                        integrator.transmittance_to(observer_m, dir, t, &lanes, &mut rng)
+                        integrator.transmittance_from(&observer, dir, t, &lanes, &mut rng)
                     else {
                         continue;
                     };
@@ -468,6 +473,7 @@ impl CircleSplatter {
             rho_edges,
             bins,
             cdf,
+            observer,
         })
     }
 
@@ -585,7 +591,7 @@ impl CircleSplatter {
             {
                 continue;
             }
-            let Some(tr) = integrator.transmittance_to(axis.observer_m, dir, t, lanes, rng) else {
+            let Some(tr) = integrator.transmittance_from(&self.observer, dir, t, lanes, rng) else {
                 continue;
             };
             let mu = cam_dir.dot(d0);

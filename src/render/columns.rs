@@ -345,17 +345,25 @@ impl ColumnTable {
         let a = self.altitude_per_root * (root_h - ALTITUDE_OFFSET_M.sqrt());
         let mu = mu.clamp(0.0, 1.0);
         let inv = 1.0 / (mu + COSINE_SCALE);
-        let z = self.cosine_coordinate_scale * mu * inv;
+        let (k, fz) = self.cosine_cell(mu);
         let i = (a as usize).min(ALTITUDE_NODES - 2);
-        let k = (z as usize).min(COSINE_NODES - 2);
         Cell {
             i,
             k,
             fa: (a - i as f64).clamp(0.0, 1.0),
-            fz: (z - k as f64).clamp(0.0, 1.0),
+            fz,
             da_dr: 0.5 * self.altitude_per_root / root_h,
             dz_dmu: self.cosine_coordinate_scale * COSINE_SCALE * inv * inv,
         }
+    }
+
+    /// The cosine cell of `mu` and the fraction across it.
+    fn cosine_cell(&self, mu: f64) -> (usize, f64) {
+        let mu = mu.clamp(0.0, 1.0);
+        let inv = 1.0 / (mu + COSINE_SCALE);
+        let z = self.cosine_coordinate_scale * mu * inv;
+        let k = (z as usize).min(COSINE_NODES - 2);
+        (k, (z - k as f64).clamp(0.0, 1.0))
     }
 
     /// The four table nodes around `cell`: (i, k), (i, k+1), (i+1, k), (i+1, k+1).
@@ -568,27 +576,99 @@ impl ColumnTable {
             Some(&(t, _)) => t.clamp(t_start, span.t_exit),
             None => return Some(None),
         };
-        let at = |t: f64| {
-            let x = origin + dir * t;
-            let r = x.length();
-            (r, x.dot(dir) / r)
-        };
-        let ((r0, mu0), (r1, mu1)) = (at(t_start), at(t_stop));
-        let bound = self.stretch_bound((r0, mu0), (r1, mu1));
-        let rate = lanes.residual_bound(bound, self.ozone_max_m3);
-        if !(rate.is_finite() && rate * (t_stop - t_start) <= MAX_EXPECTED_EVENTS) {
-            return None;
-        }
+        let ((r0, mu0), (r1, mu1)) = (
+            radius_and_cosine(origin, dir, t_start),
+            radius_and_cosine(origin, dir, t_stop),
+        );
+        let rate = self.residual_rate(
+            self.stretch_bound((r0, mu0), (r1, mu1)),
+            lanes,
+            t_stop - t_start,
+        )?;
         let ray = RayColumns::new(self, r0, mu0);
-        let columns_at = |(r, mu): (f64, f64)| ray.at(r, mu);
-        let start_columns = columns_at((r0, mu0));
-        if !start_columns.iter().all(|c| c.is_finite()) {
-            // Defensive: never met in the tests; the walk is always valid.
+        let start_columns = finite(ray.at(r0, mu0))?;
+        let stretch = Stretch {
+            origin,
+            dir,
+            t_start,
+            t_stop,
+            rate,
+            start_columns,
+        };
+        let end = to_end.then_some(span.hits_ground);
+        Some(self.track(medium, &stretch, &ray, lanes, checkpoints, end, rng))
+    }
+
+    /// An unbiased transmittance estimate from `start` along the unit
+    /// direction `dir` to distance `t_m`, like [`Self::transmittance_along`]
+    /// with one checkpoint, for a ray that does not start downward (`None`
+    /// for one that does, or where the bound expects more than
+    /// `MAX_EXPECTED_EVENTS` events): such a ray only climbs, so its lowest
+    /// point — whose cell bounds the residual — is its start, and neither
+    /// the ground nor a perigee term enters.
+    pub fn transmittance_from(
+        &self,
+        medium: &Medium,
+        start: &FixedStart,
+        dir: DVec3,
+        t_m: f64,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        let mu0 = start.position_m.dot(dir) / start.radius_m;
+        if mu0 < 0.0 {
             return None;
         }
+        let (k, fz) = self.cosine_cell(mu0);
+        let rate = self.residual_rate(start.bound[k], lanes, t_m)?;
+        let stretch = Stretch {
+            origin: start.position_m,
+            dir,
+            t_start: 0.0,
+            t_stop: t_m,
+            rate,
+            start_columns: finite(start.columns(k, fz))?,
+        };
+        let ray = RayColumns::new(self, start.radius_m, mu0);
+        let mut point = [(t_m, [0.0; LANES])];
+        self.track(medium, &stretch, &ray, lanes, &mut point, None, rng);
+        Some(point[0].1)
+    }
+
+    /// The rate of the residual events over a stretch of `length_m` whose
+    /// profiles lie within `bound` of the control; `None` where it expects
+    /// more than [`MAX_EXPECTED_EVENTS`] events (or is not finite).
+    fn residual_rate(&self, bound: Profiles, lanes: &SpectralLanes, length_m: f64) -> Option<f64> {
+        let rate = lanes.residual_bound(bound, self.ozone_max_m3);
+        (rate.is_finite() && rate * length_m <= MAX_EXPECTED_EVENTS).then_some(rate)
+    }
+
+    /// Residual ratio tracking over `stretch`: each checkpoint (ascending)
+    /// gets its estimate; with `end` = `Some(hits_ground)` the estimate to
+    /// the stretch's end is returned (C̃ = 0 there if it ends at the top),
+    /// with `None`, nothing.
+    fn track(
+        &self,
+        medium: &Medium,
+        stretch: &Stretch,
+        ray: &RayColumns<'_>,
+        lanes: &SpectralLanes,
+        checkpoints: &mut [(f64, Lanes)],
+        end: Option<bool>,
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        let &Stretch {
+            origin,
+            dir,
+            t_start,
+            t_stop,
+            rate,
+            start_columns,
+        } = stretch;
         // The estimate to `t` given the factors of the events before it.
         let estimate = |t: f64, factors: &Lanes| -> Lanes {
-            let end = columns_at(at(t.clamp(t_start, t_stop)));
+            let (r, mu) = radius_and_cosine(origin, dir, t.clamp(t_start, t_stop));
+            let end = ray.at(r, mu);
             let depth = lanes.control(std::array::from_fn(|p| start_columns[p] - end[p]));
             std::array::from_fn(|j| factors[j] * (-depth[j]).exp())
         };
@@ -605,10 +685,9 @@ impl ColumnTable {
                     c.1 = estimate(c.0, &factors);
                     next_checkpoint += 1;
                 }
-                let x = origin + dir * t;
-                let r = x.length();
+                let (r, mu) = radius_and_cosine(origin, dir, t);
                 let c = medium.coefficients(r, lanes);
-                let control = lanes.control(self.control(r, x.dot(dir) / r));
+                let control = lanes.control(self.control(r, mu));
                 for (j, f) in factors.iter_mut().enumerate() {
                     *f *= 1.0 - (c.extinction(j) - control[j]) / rate;
                 }
@@ -617,15 +696,114 @@ impl ColumnTable {
         for c in &mut checkpoints[next_checkpoint..] {
             c.1 = estimate(c.0, &factors);
         }
-        Some(to_end.then(|| {
-            if span.hits_ground {
+        end.map(|hits_ground| {
+            if hits_ground {
                 estimate(t_stop, &factors)
             } else {
                 // At the top C̃ = 0 (V vanishes there, up to rounding).
                 let depth = lanes.control(start_columns);
                 std::array::from_fn(|j| factors[j] * (-depth[j]).exp())
             }
-        }))
+        })
+    }
+}
+
+/// `columns` if all are finite. Defensive: never otherwise in the tests (the
+/// shells' walk then takes the ray, always valid).
+fn finite(columns: Profiles) -> Option<Profiles> {
+    columns.iter().all(|c| c.is_finite()).then_some(columns)
+}
+
+/// The radius of the point at distance `t_m` along `dir` from `origin`, and
+/// the cosine of `dir` with the vertical there.
+fn radius_and_cosine(origin: DVec3, dir: DVec3, t_m: f64) -> (f64, f64) {
+    let x = origin + dir * t_m;
+    let r = x.length();
+    (r, x.dot(dir) / r)
+}
+
+/// A stretch of a ray to track: from `t_start` to `t_stop` along `dir`
+/// from `origin`, its residual events' rate and C̃ at its start.
+struct Stretch {
+    origin: DVec3,
+    dir: DVec3,
+    t_start: f64,
+    t_stop: f64,
+    rate: f64,
+    start_columns: Profiles,
+}
+
+/// The table's look-ups at one fixed start point — the observer, from which
+/// every splat's ray to the camera starts ([`super::circles`]): C̃ there
+/// and the residual bound of its cell as functions of the direction cosine
+/// alone. At a fixed altitude the bicubic patch of g̃ is a cubic Hermite
+/// spline in the cosine coordinate whose node values and slopes are
+/// collapsed across altitude once, here: a look-up reads two nodes, not
+/// four, and computes no altitude coordinate. It is the same polynomial
+/// as [`ColumnTable::columns_up`] at the start (to rounding), so C̃'s
+/// difference along a ray stays the control's integral.
+pub struct FixedStart {
+    position_m: DVec3,
+    radius_m: f64,
+    /// The exact vertical column above the start.
+    vertical: Profiles,
+    /// Per cosine node: g̃ and its slope along the cosine nodes at the
+    /// start's altitude.
+    nodes: Vec<[Profiles; 2]>,
+    /// Per cosine node: the residual bound of the start's cell.
+    bound: Vec<Profiles>,
+}
+
+impl FixedStart {
+    /// The look-ups of `table` at `position_m` (inside the atmosphere).
+    pub fn new(table: &ColumnTable, position_m: DVec3) -> Self {
+        let radius_m = position_m.length();
+        let cell = table.cell(radius_m, 0.0);
+        let (ha, _) = hermite(cell.fa);
+        let nodes = (0..COSINE_NODES)
+            .map(|k| {
+                let (below, above) = (
+                    &table.table[cell.i * COSINE_NODES + k],
+                    &table.table[(cell.i + 1) * COSINE_NODES + k],
+                );
+                // The altitude weights of slant_factor's corners (u = 0, 1):
+                // value and cosine slope each take value + altitude slope,
+                // and cosine slope + cross slope, of the two altitude nodes.
+                let collapse = |offset: usize| {
+                    std::array::from_fn(|p| {
+                        ha[0] * below[offset + p]
+                            + ha[1] * below[offset + 2 * PROFILES + p]
+                            + ha[2] * above[offset + p]
+                            + ha[3] * above[offset + 2 * PROFILES + p]
+                    })
+                };
+                [collapse(0), collapse(PROFILES)]
+            })
+            .collect();
+        Self {
+            position_m,
+            radius_m,
+            vertical: table.vertical(radius_m - table.planet_radius_m),
+            nodes,
+            bound: (0..COSINE_NODES)
+                .map(|k| table.bound[cell.i * COSINE_NODES + k])
+                .collect(),
+        }
+    }
+
+    /// The start.
+    pub fn position_m(&self) -> DVec3 {
+        self.position_m
+    }
+
+    /// C̃ from the start along a direction in cosine cell `k` at fraction `fz`.
+    fn columns(&self, k: usize, fz: f64) -> Profiles {
+        let (hz, _) = hermite(fz);
+        let (lo, hi) = (&self.nodes[k], &self.nodes[k + 1]);
+        std::array::from_fn(|p| {
+            let g = hz[0] * lo[0][p] + hz[1] * lo[1][p] + hz[2] * hi[0][p] + hz[3] * hi[1][p];
+            self.vertical[p] / g
+        })
     }
 }
 
@@ -958,5 +1136,84 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_fixed_start_reads_the_tables_columns_and_estimates() {
+        // From observers at 2 m, 1.5 km and 30 km, toward elevations 0–90°:
+        // the collapsed look-ups give columns_up's C̃ and the start cell's
+        // bound (to 1e-12), and transmittance_from the same estimates as
+        // transmittance_along with one checkpoint, from the same random
+        // numbers (so the same control integral and residual events); rays
+        // that start downward are declined.
+        let medium = medium();
+        let table = table(&medium);
+        let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
+        let mut compared = 0;
+        for altitude_m in [2.0, 1500.0, 30_000.0] {
+            let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + altitude_m);
+            let start = FixedStart::new(table, origin);
+            for el_deg in [0.0, 0.3, 1.0, 4.0, 12.0, 37.0, 71.0, 90.0] {
+                let el = f64::to_radians(el_deg);
+                let dir = DVec3::new(el.cos(), 0.0, el.sin());
+                let mu = el.sin();
+                let (k, fz) = table.cosine_cell(mu);
+                let (fixed, exact) = (start.columns(k, fz), table.columns_up(origin.length(), mu));
+                for p in 0..PROFILES {
+                    assert!(
+                        (fixed[p] - exact[p]).abs() <= 1e-12 * exact[p].abs(),
+                        "{altitude_m} m, {el_deg}°, profile {p}: {} vs {}",
+                        fixed[p],
+                        exact[p]
+                    );
+                }
+                let span = medium.span(origin, dir).unwrap();
+                assert_eq!(
+                    start.bound[k],
+                    table.stretch_bound((origin.length(), mu), (origin.length(), mu))
+                );
+                for t_m in [500.0, 2e4, 1.5e5] {
+                    let t_m = f64::min(t_m, span.t_exit);
+                    let mut point = [(t_m, [0.0; LANES])];
+                    let along = table.transmittance_along(
+                        &medium,
+                        origin,
+                        dir,
+                        span,
+                        &lanes,
+                        &mut point,
+                        false,
+                        &mut Rng::new(3, compared),
+                    );
+                    let from = table.transmittance_from(
+                        &medium,
+                        &start,
+                        dir,
+                        t_m,
+                        &lanes,
+                        &mut Rng::new(3, compared),
+                    );
+                    assert_eq!(
+                        along.is_some(),
+                        from.is_some(),
+                        "{altitude_m} m, {el_deg}°, {t_m} m"
+                    );
+                    if let Some(from) = from {
+                        for (j, (a, b)) in from.iter().zip(point[0].1).enumerate() {
+                            assert!(
+                                (a - b).abs() <= 1e-12,
+                                "{altitude_m} m, {el_deg}°, {t_m} m, lane {j}: {a} vs {b}"
+                            );
+                        }
+                        compared += 1;
+                    }
+                }
+            }
+            let down = DVec3::new(1.0, 0.0, -0.01).normalize();
+            assert!(table
+                .transmittance_from(&medium, &start, down, 1e3, &lanes, &mut Rng::new(3, 0))
+                .is_none());
+        }
+        assert!(compared >= 60, "{compared} estimates compared");
     }
 }

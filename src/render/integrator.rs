@@ -104,6 +104,7 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
+use super::columns::FixedStart;
 use super::control::{CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX, NODES};
 use super::guide::{GuideAt, SkyGuide};
 use super::medium::Span;
@@ -881,6 +882,31 @@ impl<'a> Integrator<'a> {
             self.trace(start, [1.0; LANES], lanes, &mut radiance, rng);
         }
         Some((dir, pdf, radiance))
+    }
+
+    /// [`Self::transmittance_to`] from a fixed start (the observer) along
+    /// the unit direction `dir`, through the start's cached look-ups
+    /// ([`FixedStart`]) where the rays' estimator is the table's (residual
+    /// ratio tracking, tight bounds) and the ray does not start downward.
+    pub(crate) fn transmittance_from(
+        &self,
+        start: &FixedStart,
+        dir: DVec3,
+        t_m: f64,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        if (self.options.shadow_transmittance, self.bounds)
+            == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight)
+        {
+            let table = self.medium.column_table();
+            if let Some(estimate) =
+                table.transmittance_from(self.medium, start, dir, t_m, lanes, rng)
+            {
+                return Some(estimate);
+            }
+        }
+        self.transmittance_to(start.position_m(), dir, t_m, lanes, rng)
     }
 
     /// Transmittance from `origin` along `dir` to distance `t_m`, or `None`
