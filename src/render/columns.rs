@@ -740,7 +740,7 @@ struct Stretch {
 /// spline in the cosine coordinate whose node values and slopes are
 /// collapsed across altitude once, here: a look-up reads two nodes, not
 /// four, and computes no altitude coordinate. It is the same polynomial
-/// as [`ColumnTable::columns_up`] at the start (to rounding), so C̃'s
+/// as `ColumnTable::columns_up` at the start (to rounding), so C̃'s
 /// difference along a ray stays the control's integral.
 pub struct FixedStart {
     position_m: DVec3,
