@@ -19,10 +19,12 @@
 //! where ω falls in the pixel). The camera's own paths estimate it by a
 //! point on each camera ray and a path from there: every such path serves
 //! one pixel (two with mirror pairs). Here one path serves many: a point y₀
-//! is drawn in (r, θ), K positions ψ_k along its circle, one direction d₀
-//! at y₀ and one path estimating L(y₀, d₀) — which is also an unbiased
+//! is drawn in (r, θ), K positions ψ_k along its circle, a direction d₀
+//! at y₀ and a path estimating L(y₀, d₀) — which is also an unbiased
 //! estimate of L(R_k y₀, R_k d₀) — and each y_k = R_k y₀ adds its
-//! J T σ_s P / t² term to the pixel its camera direction falls in. Each
+//! J T σ_s P / t² term to the pixel its camera direction falls in (two
+//! directions, each with its path, averaged: the positions' cost, their
+//! transmittances above all, is shared). Each
 //! term carries the densities it was drawn with, so every pixel's expected
 //! sum is V exactly; the paths' noise, which at twilight is most of the
 //! image's, is spread over K pixels (`BENCHMARKS.md`, session 20).
@@ -36,10 +38,10 @@
 //!   [`SkyGuide::skylight`]) holds most of the density; an analytic
 //!   density in ρ, positive wherever a circle can be seen, the rest.
 //! * **Positions** ψ on the visible arc, in two rounds. Before the
-//!   direction: a few from a Cauchy density about the point nearest the
-//!   observer (t² ≈ d² + c ψ² there) and a few uniform. After it, most:
-//!   from the Cauchy density times the phase function toward the observer
-//!   at each position given d₀ (`PhaseCells`), so that an aerosol's
+//!   directions: a few from a Cauchy density about the point nearest the
+//!   observer (t² ≈ d² + c ψ² there) and a few uniform. After them, most:
+//!   from the Cauchy density times the phase functions toward the observer
+//!   at each position given the d₀ (`PhaseCells`), so that an aerosol's
 //!   forward peak is drawn where it points at the observer. All combined
 //!   by the balance heuristic (multi-sample MIS), all stratified.
 //! * **Direction** d₀: the scene's usual mixture (the guide's table, the
@@ -58,8 +60,15 @@ use super::integrator::Integrator;
 use super::medium::{Medium, SpectralLanes, LANES};
 use crate::rng::Rng;
 
-/// Positions along a circle per path.
+/// Positions along a circle per point.
 pub const SPLATS_PER_WALK: usize = 32;
+/// Directions (each with its path) per point, shared by its positions.
+/// About half a twilight walk's variance was its path's (four paths along
+/// one direction: 0.54× the splats' variance). Two directions against one,
+/// fixed passes (session 22): variance 0.69× at twilight, 0.72× at sunset
+/// for 1.27× and 1.2× the CPU time (noise² × time 0.86–0.88×); three:
+/// no better than two.
+const DIRECTIONS_PER_WALK: usize = 2;
 /// Of them, drawn before the path's direction: from the Cauchy density
 /// about the observer's nearest point, and uniformly.
 const CAUCHY_SPLATS: usize = 4;
@@ -553,17 +562,31 @@ impl CircleSplatter {
         }
         let first_dirs: [DVec3; FIRST_SPLATS] = std::array::from_fn(|k| positions[k].2);
         let c = integrator.medium.coefficients(r, lanes);
-        let Some((d0, direction_pdf, radiance)) =
-            integrator.splat_walk(y0, &first_dirs, &c, lanes, rng)
-        else {
-            return 0;
-        };
-        if direction_pdf <= 0.0 || radiance[..lanes.active].iter().all(|&l| l == 0.0) {
+        // Each direction's path estimate over its density, averaged over
+        // all DIRECTIONS_PER_WALK draws (those that found nothing count).
+        let mut directions = [(DVec3::ZERO, [0.0; LANES]); DIRECTIONS_PER_WALK];
+        let mut found = 0;
+        for _ in 0..DIRECTIONS_PER_WALK {
+            let Some((d, pdf, radiance)) = integrator.splat_walk(y0, &first_dirs, &c, lanes, rng)
+            else {
+                continue;
+            };
+            if pdf > 0.0 && radiance[..lanes.active].iter().any(|&l| l != 0.0) {
+                let scale = 1.0 / (pdf * DIRECTIONS_PER_WALK as f64);
+                directions[found] = (d, radiance.map(|l| l * scale));
+                found += 1;
+            }
+        }
+        let directions = &directions[..found];
+        if directions.is_empty() {
             return 0;
         }
         let cells = PhaseCells::new(std::array::from_fn(|m| {
             let (_, camera_dir) = place(arc.cauchy(PhaseCells::centre(m)));
-            integrator.phase_mixture_pdf(&c, lanes, camera_dir.dot(d0))
+            directions
+                .iter()
+                .map(|(d, _)| integrator.phase_mixture_pdf(&c, lanes, camera_dir.dot(*d)))
+                .sum::<f64>()
         }));
         for (slot, psi) in positions[FIRST_SPLATS..]
             .iter_mut()
@@ -594,13 +617,17 @@ impl CircleSplatter {
             let Some(tr) = integrator.transmittance_from(&self.observer, dir, t, lanes, rng) else {
                 continue;
             };
-            let mu = cam_dir.dot(d0);
-            let weight = r * r * theta.sin() * per_sr
-                / (t * t * point_density * position_density * direction_pdf);
+            let weight = r * r * theta.sin() * per_sr / (t * t * point_density * position_density);
+            let mut in_scattered = [0.0; LANES];
+            for (d, radiance) in directions {
+                let phases = integrator.scattering_phases(&c, lanes, cam_dir.dot(*d));
+                for (s, (p, l)) in in_scattered.iter_mut().zip(phases.iter().zip(radiance)) {
+                    *s += p * l;
+                }
+            }
             let mut xyz = [0.0; 3];
             for j in 0..lanes.active {
-                let l =
-                    tr[j] * integrator.scattering_phase(&c, lanes, j, mu) * radiance[j] * weight;
+                let l = tr[j] * in_scattered[j] * weight;
                 for (v, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
                     *v += l * bar;
                 }

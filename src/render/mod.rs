@@ -33,7 +33,7 @@ pub use integrator::{Integrator, IntegratorOptions, Sampler};
 pub use medium::{LaneTable, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 
 use crate::atmosphere::Atmosphere;
-use crate::rng::{Rng, SOBOL_POINTS};
+use crate::rng::{mix64, Rng, SOBOL_POINTS};
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
 use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
@@ -41,12 +41,14 @@ use sunlight::CameraDensities;
 
 /// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
 const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
-/// Paths splatted per pass, per pixel ([`circles`]). At twilight, in the
-/// bench (256×128, 10 s): 1: 7.74 %, 2: 7.07–7.82 %, 3: 6.55–7.43 %
-/// (five runs), 4: 7.19 %: with more, the camera's own samples (single
-/// scattering, the ground) get too few passes (`BENCHMARKS.md`, session
-/// 20).
-const SPLAT_PATHS_PER_PIXEL: u64 = 3;
+/// Points splatted per pass, per pixel ([`circles`]; each with two
+/// directions and paths). At twilight, in the bench (256×128, 10 s,
+/// session 20, one path per point): 1: 7.74 %, 2: 7.07–7.82 %, 3:
+/// 6.55–7.43 % (five runs), 4: 7.19 %: with more, the camera's own
+/// samples (single scattering, the ground) get too few passes. With two
+/// paths per point, 2 and 3 give the same noise² × time (fixed passes,
+/// twilight and sunset, session 22): 2, for shorter passes.
+const SPLAT_PATHS_PER_PIXEL: u64 = 2;
 
 /// (√5 − 1)/2: the additive recurrence with this step is the most evenly
 /// spread 1-D sequence (Weyl; the three-distance theorem).
@@ -606,11 +608,21 @@ impl Renderer {
                         // share one per sample: fine for one sample per
                         // pixel, but paths splatted into one pixel must not
                         // be related).
-                        let mut rng = Rng::for_sample(
-                            self.scene.render.seed,
-                            (u64::from(pass) << 40) ^ walk,
-                            SPLAT_STREAM,
-                        );
+                        let seed = self.scene.render.seed;
+                        let rng =
+                            Rng::for_sample(seed, (u64::from(pass) << 40) ^ walk, SPLAT_STREAM);
+                        // The pass's paths take the points of Sobol
+                        // sequences, one scrambled per pass and block of
+                        // SOBOL_POINTS: their wavelengths, points and first
+                        // directions are stratified across the pass.
+                        let mut rng = match integrator.options.sampler {
+                            Sampler::Sobol => rng.with_sobol_prefix(
+                                seed ^ mix64(u64::from(pass)),
+                                SPLAT_STREAM ^ (walk / SOBOL_POINTS),
+                                (walk % SOBOL_POINTS) as u32,
+                            ),
+                            Sampler::Independent => rng,
+                        };
                         let (lanes, pdfs) = self.sample_lanes(rng.uniform());
                         let weights = std::array::from_fn(|j| {
                             let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
