@@ -396,7 +396,7 @@ fn midday_zenith_luminance_is_683_times_the_radiance_under_y_bar() {
 fn circle_splatting_leaves_the_sky_alone() {
     // The splats of `render::circles` carry the light scattered more than
     // once in the air in place of the camera's own branches; the sky's
-    // expectation must not move. A walk's splats land in up to 32 pixels,
+    // expectation must not move. A walk's splats land in up to 64 pixels,
     // so pixels are not independent: the standard error comes from the
     // spread of whole-sky means over independent seeds. Per preset (the
     // walks delta-tracked by day, through segment estimates at twilight)

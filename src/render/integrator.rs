@@ -225,7 +225,7 @@ pub struct IntegratorOptions {
     /// Multiply scattered light splatted along the scene's circles of
     /// symmetry ([`super::circles`]): the camera's own paths keep single
     /// scattering and the ground's light, and paths started anywhere in the
-    /// visible air carry the rest to the pixels of 32 points on their
+    /// visible air carry the rest to the pixels of 64 points on their
     /// start's circle about the sun's axis. Needs `camera_samples` > 0,
     /// `next_event_estimation` and the observer inside the atmosphere.
     /// Unset (the default): on with the sun below

@@ -576,7 +576,8 @@ impl Renderer {
         const CHUNK: u64 = 256;
         // Chunks run in parallel between checks for cancellation; their
         // number does not change the image (splats are added in order).
-        // Capped: each holds up to CHUNK × 32 splats (256 KiB) until added.
+        // Capped: each holds up to CHUNK × SPLATS_PER_WALK splats (512 KiB)
+        // until added.
         let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
         let splatter = self.circles.get_or_init(|| {
             CircleSplatter::new(
