@@ -114,6 +114,19 @@ use super::trig::sin_cos_turns;
 use crate::physics::{rayleigh, sun};
 use crate::rng::Rng;
 
+/// σ_s,R P_R + σ_s,A P_A of lane `j` at cosine `mu`, given the aerosol's
+/// phase function there (the same for every lane).
+fn lane_scattering_phase(
+    c: &super::medium::Coefficients,
+    lanes: &SpectralLanes,
+    j: usize,
+    mu: f64,
+    aerosol_phase: f64,
+) -> f64 {
+    c.rayleigh[j] * rayleigh::phase(mu, lanes.rayleigh_gamma[j])
+        + c.aerosol_scattering[j] * aerosol_phase
+}
+
 /// Switches for the variance-reduction techniques (each defaults to the best;
 /// the benchmark's ablation turns them off one at a time).
 #[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
@@ -784,8 +797,8 @@ impl<'a> Integrator<'a> {
         j: usize,
         mu: f64,
     ) -> f64 {
-        c.rayleigh[j] * rayleigh::phase(mu, lanes.rayleigh_gamma[j])
-            + c.aerosol_scattering[j] * self.medium.aerosol_phase.eval(mu, self.medium.aerosol_g)
+        let aerosol = self.medium.aerosol_phase.eval(mu, self.medium.aerosol_g);
+        lane_scattering_phase(c, lanes, j, mu, aerosol)
     }
 
     /// [`Self::scattering_phase`] of every lane (the aerosol's phase
@@ -799,8 +812,7 @@ impl<'a> Integrator<'a> {
         let aerosol = self.medium.aerosol_phase.eval(mu, self.medium.aerosol_g);
         std::array::from_fn(|j| {
             if j < lanes.active {
-                c.rayleigh[j] * rayleigh::phase(mu, lanes.rayleigh_gamma[j])
-                    + c.aerosol_scattering[j] * aerosol
+                lane_scattering_phase(c, lanes, j, mu, aerosol)
             } else {
                 0.0
             }
@@ -917,17 +929,16 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         rng: &mut Rng,
     ) -> Option<Lanes> {
-        if (self.options.shadow_transmittance, self.bounds)
-            == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight)
-        {
-            let table = self.medium.column_table();
-            if let Some(estimate) =
-                table.transmittance_from(self.medium, start, dir, t_m, lanes, rng)
-            {
-                return Some(estimate);
-            }
-        }
-        self.transmittance_to(start.position_m(), dir, t_m, lanes, rng)
+        let table = self.medium.transmittance_from(
+            start,
+            dir,
+            t_m,
+            lanes,
+            self.options.shadow_transmittance,
+            self.bounds,
+            rng,
+        );
+        table.or_else(|| self.transmittance_to(start.position_m(), dir, t_m, lanes, rng))
     }
 
     /// Transmittance from `origin` along `dir` to distance `t_m`, or `None`

@@ -22,7 +22,14 @@
 
 use glam::DVec3;
 
-use super::columns::ColumnTable;
+use super::columns::{ColumnTable, FixedStart};
+
+/// Whether rays estimated with `estimator` within `bounds` try the column
+/// table's control first ([`ColumnTable`]; the shells' walk where it
+/// declines).
+fn takes_table(estimator: TransmittanceEstimator, bounds: Bounds) -> bool {
+    (estimator, bounds) == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight)
+}
 use crate::atmosphere::Atmosphere;
 use crate::physics::{aerosol, ozone, rayleigh, standard_atmosphere, sun};
 use crate::rng::Rng;
@@ -805,6 +812,30 @@ impl Medium {
         std::array::from_fn(|j| factors[j] * (-depth[j]).exp())
     }
 
+    /// The column table's transmittance estimate from `start` (the
+    /// observer) along the unit direction `dir` to distance `t_m`
+    /// ([`ColumnTable::transmittance_from`]) where `estimator` and `bounds`
+    /// take the table as in [`Self::transmittance_along`]; `None` where
+    /// they do not or the table declines the ray (then the caller walks).
+    #[allow(clippy::too_many_arguments)]
+    pub(super) fn transmittance_from(
+        &self,
+        start: &FixedStart,
+        dir: DVec3,
+        t_m: f64,
+        lanes: &SpectralLanes,
+        estimator: TransmittanceEstimator,
+        bounds: Bounds,
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        takes_table(estimator, bounds)
+            .then(|| {
+                self.column_table()
+                    .transmittance_from(self, start, dir, t_m, lanes, rng)
+            })
+            .flatten()
+    }
+
     /// Unbiased transmittance estimates from the start of `span` to each
     /// distance in `checkpoints` (ascending; each replaced by its estimate in
     /// lane 0..LANES of the matching entry of the returned prefix) and, with
@@ -829,7 +860,7 @@ impl Medium {
         if !to_end && checkpoints.is_empty() {
             return None;
         }
-        if (estimator, bounds) == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight) {
+        if takes_table(estimator, bounds) {
             let table = self.column_table();
             if let Some(estimate) =
                 table.transmittance_along(self, origin, dir, span, lanes, checkpoints, to_end, rng)
