@@ -37,6 +37,10 @@
 //!   scattering and the guide's mean once-scattered light at the point,
 //!   [`SkyGuide::skylight`]) holds most of the density; an analytic
 //!   density in ρ, positive wherever a circle can be seen, the rest.
+//!   From the second splatting pass on, most points come from a density
+//!   learned from the earlier passes' splats ([`LearnedPoints`]): the
+//!   prior's times a factor per cell of the table, where the splats' own
+//!   variance says points are missing.
 //! * **Positions** ψ on the visible arc, in two rounds. Before the
 //!   directions: a few from a Cauchy density about the point nearest the
 //!   observer (t² ≈ d² + c ψ² there) and a few uniform. After them, most:
@@ -93,6 +97,19 @@ const TABLE_SHARE: f64 = 0.8;
 /// then uniform up to the farthest visible circle.
 const RHO_SHARES: [f64; 2] = [0.5, 0.3];
 const RHO_SCALES_M: [f64; 2] = [5e3, 30e3];
+/// Share of the points drawn from the density learned from the pass's
+/// predecessors' splats ([`LearnedPoints`]), once there are any; the rest
+/// from the prior (table and analytic parts), which keeps the density
+/// positive wherever the prior is. Cross-validated offline on the splats
+/// of one twilight render against another's (session 23): 0.25, 0.5,
+/// 0.75 left 0.84×, 0.75×, 0.70× the splats' variance.
+const LEARNED_SHARE: f64 = 0.75;
+/// Table bins per learned cell along each axis: the learned density is the
+/// prior's times one factor per cell of 4 × 4 bins (16 × 16 cells; 8 × 8
+/// and 32 × 32 cells did no better offline).
+const CELL_BINS: usize = 4;
+const CELLS_PHI: usize = TABLE_PHI_BINS / CELL_BINS;
+const CELLS: usize = (TABLE_RHO_BINS / CELL_BINS) * CELLS_PHI;
 /// The table's bins: ρ log-spaced from [`TABLE_RHO_MIN_M`] (one bin below
 /// it), φ uniform; positions along the arc per bin for its integral.
 const TABLE_RHO_BINS: usize = 64;
@@ -366,6 +383,17 @@ fn sample_analytic_rho(u: f64, v: f64, rho_max: f64) -> f64 {
     }
 }
 
+/// Probability of ρ ≤ `rho_m` under [`analytic_rho_density`].
+fn analytic_rho_cdf(rho_m: f64, rho_max: f64) -> f64 {
+    let exponentials: f64 = RHO_SHARES
+        .iter()
+        .zip(RHO_SCALES_M)
+        .map(|(share, scale)| share * -(-rho_m / scale).exp_m1())
+        .sum();
+    let uniform = 1.0 - RHO_SHARES.iter().sum::<f64>();
+    exponentials + uniform * (rho_m / rho_max).min(1.0)
+}
+
 /// Whether the scene has circles to splat along: not with the sun at the
 /// observer's zenith or nadir (see `SunAxis::new`).
 pub fn has_circles(observer_m: DVec3, sun_direction: DVec3) -> bool {
@@ -382,9 +410,69 @@ pub struct CircleSplatter {
     /// view had weight (then the analytic density alone).
     bins: Vec<f64>,
     cdf: Vec<f64>,
+    /// The prior's (table and analytic parts') probability of each bin.
+    prior_bins: Vec<f64>,
     /// The column table's look-ups at the observer, where every splat's
     /// ray to the camera starts.
     observer: FixedStart,
+}
+
+/// The points' density learned from the splats of a render's passes so
+/// far (one per film): the prior's ([`CircleSplatter`]'s table and
+/// analytic parts) times one factor per cell of (ρ, φ) bins, chosen to
+/// minimise the splats' variance summed over the image.
+///
+/// A walk from point x adds s(x) = Σ_k Y_k² (its splats' luminances) to
+/// that sum (over N² for N walks); s scales as 1/p(x)² with the density
+/// p that drew x. Drawn from the prior p₀ times c_b on cell b (Σ_b c_b P_b
+/// = 1, P_b the prior's mass there), the sum is Σ_b S_b / c_b, S_b the
+/// cell's share of it under p₀ — least for c_b ∝ √(S_b / P_b). S_b is
+/// estimated from the walks drawn so far, whatever density q drew them:
+/// each adds s q/p₀ (q/p₀ squared brings s to p₀'s scale, p₀/q weighs the
+/// walk back). At twilight the prior's guess — the light that scatters
+/// once on the way, from the guide — missed both the brightness of the
+/// paths found low in the shadow and the weight of the splats near the
+/// zenith and on the horizon (`BENCHMARKS.md`, session 23).
+///
+/// A pass draws [`LEARNED_SHARE`] of its points from the learned density
+/// and the rest from the prior, so the density is positive wherever the
+/// prior's is, and fixed before the pass starts: every pass stays
+/// unbiased.
+#[derive(Clone, Debug, Default)]
+pub struct LearnedPoints {
+    /// Σ s q/p₀ per cell over the walks so far.
+    moments: Vec<f64>,
+    /// The learned density's probability of each table bin, and their
+    /// running sum; empty until a walk has found light.
+    bins: Vec<f64>,
+    cdf: Vec<f64>,
+}
+
+impl LearnedPoints {
+    /// Whether points are drawn from a learned density yet.
+    pub fn is_learned(&self) -> bool {
+        !self.cdf.is_empty()
+    }
+
+    /// Adds walks' terms of their cells' moments (in walk order: the sums,
+    /// and so the image, do not depend on the thread count); the density
+    /// changes only with [`CircleSplatter::learn`].
+    pub fn add_moments(&mut self, moments: impl IntoIterator<Item = (usize, f64)>) {
+        if self.moments.is_empty() {
+            self.moments = vec![0.0; CELLS];
+        }
+        for (cell, m) in moments {
+            self.moments[cell] += m;
+        }
+    }
+}
+
+/// What one walk did: its splats discarded as not finite, and its term of
+/// its cell's moment ([`LearnedPoints`]; `None` where it splatted nothing).
+#[derive(Clone, Copy, Debug)]
+pub struct Walked {
+    pub discarded: u64,
+    pub moment: Option<(usize, f64)>,
 }
 
 impl CircleSplatter {
@@ -481,44 +569,144 @@ impl CircleSplatter {
         } else {
             (Vec::new(), Vec::new())
         };
+        // The analytic part's mass per bin: its mass in the ρ interval,
+        // spread evenly in φ.
+        let prior_bins = (0..TABLE_RHO_BINS * TABLE_PHI_BINS)
+            .map(|bin| {
+                let i = bin / TABLE_PHI_BINS;
+                let analytic = (analytic_rho_cdf(rho_edges[i + 1], rho_max)
+                    - analytic_rho_cdf(rho_edges[i], rho_max))
+                    / TABLE_PHI_BINS as f64;
+                if bins.is_empty() {
+                    analytic
+                } else {
+                    TABLE_SHARE * bins[bin] + (1.0 - TABLE_SHARE) * analytic
+                }
+            })
+            .collect();
         Some(Self {
             axis,
             rho_max_m: rho_max,
             rho_edges,
             bins,
             cdf,
+            prior_bins,
             observer,
         })
     }
 
-    /// Density of (ρ, φ) per dρ dφ.
-    fn polar_density(&self, rho: f64, phi: f64) -> f64 {
+    /// The table bin holding (ρ, φ), if any (ρ beyond the farthest circle
+    /// has none).
+    fn bin(&self, rho: f64, phi: f64) -> Option<usize> {
+        let i = self.rho_edges.partition_point(|&e| e <= rho);
+        (1..self.rho_edges.len()).contains(&i).then(|| {
+            let j = ((phi / (2.0 * PI) * TABLE_PHI_BINS as f64) as usize).min(TABLE_PHI_BINS - 1);
+            (i - 1) * TABLE_PHI_BINS + j
+        })
+    }
+
+    /// The area of table bin `bin` in (ρ, φ).
+    fn bin_area(&self, bin: usize) -> f64 {
+        let i = bin / TABLE_PHI_BINS;
+        (self.rho_edges[i + 1] - self.rho_edges[i]) * 2.0 * PI / TABLE_PHI_BINS as f64
+    }
+
+    /// A point uniform in table bin `bin`, by `v` (ρ) and `w` (φ).
+    fn in_bin(&self, bin: usize, v: f64, w: f64) -> (f64, f64) {
+        let (i, j) = (bin / TABLE_PHI_BINS, bin % TABLE_PHI_BINS);
+        let rho = self.rho_edges[i] + v * (self.rho_edges[i + 1] - self.rho_edges[i]);
+        (rho, (j as f64 + w) / TABLE_PHI_BINS as f64 * 2.0 * PI)
+    }
+
+    /// The learned cell of table bin `bin`.
+    fn cell(bin: usize) -> usize {
+        let (i, j) = (bin / TABLE_PHI_BINS, bin % TABLE_PHI_BINS);
+        (i / CELL_BINS) * CELLS_PHI + j / CELL_BINS
+    }
+
+    /// Draws `learned`'s density anew from its moments (between passes).
+    pub fn learn(&self, learned: &mut LearnedPoints) {
+        if learned.moments.is_empty() {
+            return;
+        }
+        let mut prior = vec![0.0; CELLS];
+        for (bin, p) in self.prior_bins.iter().enumerate() {
+            prior[Self::cell(bin)] += p;
+        }
+        // Each cell's mass ∝ √(S_b P_b).
+        let mass: Vec<f64> = learned
+            .moments
+            .iter()
+            .zip(&prior)
+            .map(|(s, p)| (s * p).sqrt())
+            .collect();
+        let total: f64 = mass.iter().sum();
+        if !(total > 0.0 && total.is_finite()) {
+            return;
+        }
+        learned.bins = self
+            .prior_bins
+            .iter()
+            .enumerate()
+            .map(|(bin, p)| {
+                let cell = Self::cell(bin);
+                if prior[cell] > 0.0 {
+                    mass[cell] / total * p / prior[cell]
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        let mut sum = 0.0;
+        learned.cdf = learned
+            .bins
+            .iter()
+            .map(|p| {
+                sum += p;
+                sum
+            })
+            .collect();
+    }
+
+    /// The prior's density of (ρ, φ) per dρ dφ: table and analytic parts.
+    fn prior_density(&self, rho: f64, phi: f64) -> f64 {
         let analytic = analytic_rho_density(rho, self.rho_max_m) / (2.0 * PI);
         if self.bins.is_empty() {
             return analytic;
         }
-        let i = self.rho_edges.partition_point(|&e| e <= rho);
-        let table = if (1..self.rho_edges.len()).contains(&i) {
-            let i = i - 1;
-            let j = ((phi / (2.0 * PI) * TABLE_PHI_BINS as f64) as usize).min(TABLE_PHI_BINS - 1);
-            let width = self.rho_edges[i + 1] - self.rho_edges[i];
-            self.bins[i * TABLE_PHI_BINS + j] / (width * 2.0 * PI / TABLE_PHI_BINS as f64)
-        } else {
-            0.0
-        };
+        let table = self
+            .bin(rho, phi)
+            .map_or(0.0, |bin| self.bins[bin] / self.bin_area(bin));
         TABLE_SHARE * table + (1.0 - TABLE_SHARE) * analytic
     }
 
-    fn sample_polar(&self, rng: &mut Rng) -> (f64, f64) {
+    /// Density of (ρ, φ) per dρ dφ: the prior's, or with `learned`'s part.
+    fn polar_density(&self, learned: &LearnedPoints, rho: f64, phi: f64) -> f64 {
+        let prior = self.prior_density(rho, phi);
+        if !learned.is_learned() {
+            return prior;
+        }
+        let bin = self.bin(rho, phi);
+        let learned = bin.map_or(0.0, |bin| learned.bins[bin] / self.bin_area(bin));
+        LEARNED_SHARE * learned + (1.0 - LEARNED_SHARE) * prior
+    }
+
+    fn sample_polar(&self, learned: &LearnedPoints, rng: &mut Rng) -> (f64, f64) {
+        let draw = |cdf: &[f64], u: f64| cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
         let (u, v, w) = (rng.uniform(), rng.uniform(), rng.uniform());
-        if !self.bins.is_empty() && rng.uniform() < TABLE_SHARE {
-            let bin = self
-                .cdf
-                .partition_point(|&c| c <= u)
-                .min(self.bins.len() - 1);
-            let (i, j) = (bin / TABLE_PHI_BINS, bin % TABLE_PHI_BINS);
-            let rho = self.rho_edges[i] + v * (self.rho_edges[i + 1] - self.rho_edges[i]);
-            (rho, (j as f64 + w) / TABLE_PHI_BINS as f64 * 2.0 * PI)
+        let mut x = if learned.is_learned() || !self.bins.is_empty() {
+            rng.uniform()
+        } else {
+            1.0
+        };
+        if learned.is_learned() {
+            if x < LEARNED_SHARE {
+                return self.in_bin(draw(&learned.cdf, u), v, w);
+            }
+            x = (x - LEARNED_SHARE) / (1.0 - LEARNED_SHARE);
+        }
+        if !self.bins.is_empty() && x < TABLE_SHARE {
+            self.in_bin(draw(&self.cdf, u), v, w)
         } else {
             (sample_analytic_rho(u, v, self.rho_max_m), w * 2.0 * PI)
         }
@@ -528,7 +716,7 @@ impl CircleSplatter {
     /// each splat's XYZ is the path's estimate for its pixel (the film
     /// divides by the number of paths). `wavelength_weights[j]` turns lane
     /// j's radiance into XYZ (K_m x̄ȳz̄(λ) / (its density × the lanes)).
-    /// Returns the number of splats discarded as not finite.
+    /// The point is drawn with `learned`'s density.
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &self,
@@ -536,22 +724,28 @@ impl CircleSplatter {
         camera: &Camera,
         lanes: &SpectralLanes,
         wavelength_weights: &[[f64; 3]; LANES],
+        learned: &LearnedPoints,
         rng: &mut Rng,
         out: &mut Vec<Splat>,
-    ) -> u64 {
+    ) -> Walked {
+        let nothing = Walked {
+            discarded: 0,
+            moment: None,
+        };
         let axis = &self.axis;
-        let (rho, phi) = self.sample_polar(rng);
+        let (rho, phi) = self.sample_polar(learned, rng);
         let (r, theta) = axis.at_polar(rho, phi);
         if rho <= 0.0 || !(axis.ground_m..=axis.top_m).contains(&r) || !(0.0..=PI).contains(&theta)
         {
-            return 0;
+            return nothing;
         }
         let half = axis.half_arc(r, theta);
         if half <= 0.0 {
-            return 0;
+            return nothing;
         }
+        let polar_density = self.polar_density(learned, rho, phi);
         // Density per dr dθ: per dρ dφ × r₀ / ρ.
-        let point_density = self.polar_density(rho, phi) * axis.r0_m / rho;
+        let point_density = polar_density * axis.r0_m / rho;
         let arc = Arc::new(half, cauchy_scale(axis, r, theta));
         let y0 = axis.point(r, theta, 0.0);
         // A position's offset from the observer, and its camera direction
@@ -584,7 +778,7 @@ impl CircleSplatter {
         }
         let directions = &directions[..found];
         if directions.is_empty() {
-            return 0;
+            return nothing;
         }
         let cells = PhaseCells::new(std::array::from_fn(|m| {
             let (_, camera_dir) = place(arc.cauchy(PhaseCells::centre(m)));
@@ -602,6 +796,7 @@ impl CircleSplatter {
         }
         let (width, height) = camera.size();
         let mut discarded = 0;
+        let first = out.len();
         for &(psi, to, cam_dir) in &positions {
             let position_density = arc.density(psi, &cells);
             let t = to.length();
@@ -646,7 +841,14 @@ impl CircleSplatter {
                 discarded += 1;
             }
         }
-        discarded
+        let squares: f64 = out[first..].iter().map(|s| s.xyz[1] * s.xyz[1]).sum();
+        let moment = (squares > 0.0)
+            .then(|| self.bin(rho, phi))
+            .flatten()
+            .map(|bin| (bin, self.prior_density(rho, phi)))
+            .filter(|&(_, prior)| prior > 0.0)
+            .map(|(bin, prior)| (Self::cell(bin), squares * polar_density / prior));
+        Walked { discarded, moment }
     }
 }
 
@@ -810,7 +1012,9 @@ mod tests {
     fn points_follow_their_density() {
         // E[g/p] = ∫ g over the (ρ, φ) plane for the points a twilight
         // splatter draws (table and analytic parts), with g smooth and
-        // lopsided in φ; and for the analytic sampler alone.
+        // lopsided in φ, before and after learning (three lopsided
+        // cells' moments, one of them far out); and for the analytic
+        // sampler alone.
         let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
         let sun = direction_from_az_el(30.0, -4.0);
         let options = crate::render::IntegratorOptions::default().resolved(-4.0);
@@ -831,22 +1035,51 @@ mod tests {
             }
         };
         let exact = 2.0 * PI * 1.5 * scale * (1.0 - (-rho_max / scale).exp());
+        let prior = LearnedPoints::default();
+        let mut learned = LearnedPoints::default();
+        learned.add_moments([(5, 1.0), (100, 50.0), (CELLS - 3, 3.0)]);
+        splatter.learn(&mut learned);
+        assert!(learned.is_learned() && !prior.is_learned());
+        // The learned part holds its cells' bins only, with √(S P) mass.
+        let total: f64 = learned.bins.iter().sum();
+        assert!((total - 1.0).abs() < 1e-12, "{total}");
+        let mass = |cell: usize| -> f64 {
+            (0..learned.bins.len())
+                .filter(|&b| CircleSplatter::cell(b) == cell)
+                .map(|b| learned.bins[b])
+                .sum()
+        };
+        assert_eq!(mass(6), 0.0);
+        let prior_mass = |cell: usize| -> f64 {
+            (0..splatter.prior_bins.len())
+                .filter(|&b| CircleSplatter::cell(b) == cell)
+                .map(|b| splatter.prior_bins[b])
+                .sum()
+        };
+        let ratio = mass(100) / mass(5);
+        let expected = (50.0 * prior_mass(100) / prior_mass(5)).sqrt();
+        assert!(
+            (ratio / expected - 1.0).abs() < 1e-9,
+            "{ratio} vs {expected}"
+        );
         let mut rng = Rng::new(17, 0);
         let n = 400_000u32;
-        let (mut sum, mut sum2) = (0.0, 0.0);
-        for _ in 0..n {
-            let (rho, phi) = splatter.sample_polar(&mut rng);
-            let v = g(rho, phi) / splatter.polar_density(rho, phi);
-            sum += v;
-            sum2 += v * v;
+        for density in [&prior, &learned] {
+            let (mut sum, mut sum2) = (0.0, 0.0);
+            for _ in 0..n {
+                let (rho, phi) = splatter.sample_polar(density, &mut rng);
+                let v = g(rho, phi) / splatter.polar_density(density, rho, phi);
+                sum += v;
+                sum2 += v * v;
+            }
+            let mean = sum / f64::from(n);
+            let se = ((sum2 / f64::from(n) - mean * mean) / f64::from(n)).sqrt();
+            assert!(
+                (mean - exact).abs() < 4.0 * se,
+                "{mean} against {exact} (SE {se})"
+            );
+            assert!(se < 0.02 * exact, "SE {se}");
         }
-        let mean = sum / f64::from(n);
-        let se = ((sum2 / f64::from(n) - mean * mean) / f64::from(n)).sqrt();
-        assert!(
-            (mean - exact).abs() < 4.0 * se,
-            "{mean} against {exact} (SE {se})"
-        );
-        assert!(se < 0.01 * exact, "SE {se}");
         // The analytic part alone: ∫ 1 dρ over [0, ρ_max].
         let mut sum = 0.0;
         for _ in 0..n {
@@ -876,5 +1109,19 @@ mod tests {
             * rho_max
             / f64::from(n);
         assert!((sum - 1.0).abs() < 2e-3, "{sum}");
+        // Its distribution function is its integral (midpoint rule, up to
+        // a few ρ; the learned density reads the prior's mass per bin off it).
+        for upper in [3e3, 40e3, 0.5 * rho_max, rho_max, 2.0 * rho_max] {
+            let integral: f64 = (0..n)
+                .map(|i| analytic_rho_density((f64::from(i) + 0.5) / f64::from(n) * upper, rho_max))
+                .sum::<f64>()
+                * upper
+                / f64::from(n);
+            let cdf = analytic_rho_cdf(upper, rho_max);
+            assert!(
+                (cdf - integral).abs() < 2e-3,
+                "ρ {upper}: {cdf} vs {integral}"
+            );
+        }
     }
 }

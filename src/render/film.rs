@@ -137,6 +137,8 @@ pub struct Film {
     pub(crate) splat_sum: Vec<[f32; 3]>,
     /// Paths splatted so far (the splat sums' divisor).
     pub(crate) splat_paths: u64,
+    /// The splats' point density learned from the passes so far.
+    pub(crate) learned_points: super::circles::LearnedPoints,
 }
 
 impl Film {
@@ -153,6 +155,7 @@ impl Film {
             mirror: None,
             splat_sum: Vec::new(),
             splat_paths: 0,
+            learned_points: super::circles::LearnedPoints::default(),
         }
     }
 

@@ -50,6 +50,15 @@ const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
 /// twilight and sunset, session 22): 2, for shorter passes.
 const SPLAT_PATHS_PER_PIXEL: u64 = 2;
 
+/// What one chunk of [`Renderer::splat_pass`]'s walks left: their splats,
+/// discarded splats, number, and terms of the learned density's moments.
+struct ChunkSplats {
+    splats: Vec<Splat>,
+    discarded: u64,
+    walks: u64,
+    moments: Vec<(usize, f64)>,
+}
+
 /// (√5 − 1)/2: the additive recurrence with this step is the most evenly
 /// spread 1-D sequence (Weyl; the three-distance theorem).
 const GOLDEN_RATIO_CONJUGATE: f64 = 0.618_033_988_749_894_8;
@@ -595,14 +604,18 @@ impl Renderer {
         let chunks = paths_total.div_ceil(CHUNK);
         let n = self.lanes_per_path();
         let (mut paths, mut discarded) = (0, 0);
+        // The points' density is the one learned from earlier passes, fixed
+        // for this pass; this pass's walks then refine it for the next.
+        let mut learned = std::mem::take(&mut film.learned_points);
         let mut chunk = 0;
         while chunk < chunks && !cancelled() {
             let end = (chunk + chunks_per_batch).min(chunks);
-            let batch: Vec<(Vec<Splat>, u64, u64)> = (chunk..end)
+            let batch: Vec<ChunkSplats> = (chunk..end)
                 .into_par_iter()
                 .map(|c| {
                     let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
                     let mut splats = Vec::with_capacity(CHUNK as usize * SPLATS_PER_WALK);
+                    let mut moments = Vec::with_capacity(CHUNK as usize);
                     let mut discarded = 0;
                     for walk in walks.clone() {
                         // A key of their own per path (the pixels' streams
@@ -629,25 +642,36 @@ impl Renderer {
                             let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
                             bar.map(|b| K_M * b / (pdfs[j] * n as f64))
                         });
-                        discarded += splatter.walk(
+                        let walked = splatter.walk(
                             integrator,
                             &self.camera,
                             &lanes,
                             &weights,
+                            &learned,
                             &mut rng,
                             &mut splats,
                         );
+                        discarded += walked.discarded;
+                        moments.extend(walked.moment);
                     }
-                    (splats, discarded, walks.end - walks.start)
+                    ChunkSplats {
+                        splats,
+                        discarded,
+                        walks: walks.end - walks.start,
+                        moments,
+                    }
                 })
                 .collect();
-            for (splats, d, walks) in batch {
-                film.add_splats(&splats, walks);
-                paths += walks;
-                discarded += d;
+            for c in batch {
+                learned.add_moments(c.moments);
+                film.add_splats(&c.splats, c.walks);
+                paths += c.walks;
+                discarded += c.discarded;
             }
             chunk = end;
         }
+        splatter.learn(&mut learned);
+        film.learned_points = learned;
         (paths, discarded)
     }
 
