@@ -41,14 +41,29 @@ use sunlight::CameraDensities;
 
 /// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
 const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
-/// Points splatted per pass, per pixel ([`circles`]; each with two
-/// directions and paths). At twilight, in the bench (256×128, 10 s,
+/// Points splatted per pixel in each pass after the first ([`circles`];
+/// each with two directions and paths). At twilight, in the bench (256×128, 10 s,
 /// session 20, one path per point): 1: 7.74 %, 2: 7.07–7.82 %, 3:
 /// 6.55–7.43 % (five runs), 4: 7.19 %: with more, the camera's own
 /// samples (single scattering, the ground) get too few passes. With two
 /// paths per point, 2 and 3 give the same noise² × time (fixed passes,
 /// twilight and sunset, session 22): 2, for shorter passes.
 const SPLAT_PATHS_PER_PIXEL: u64 = 2;
+/// Points per pixel of the first splatting pass (pass 1), the only one that
+/// draws them from the prior alone ([`circles::LearnedPoints`]): half as
+/// many, so the learned density takes over sooner. Twilight, draft + 2
+/// passes, seeds 1/3/5/7 (session 23): noise² × CPU time 0.91×; draft +
+/// 3 passes against draft + 3 with 2 in the first: 0.89×.
+const FIRST_SPLAT_PATHS_PER_PIXEL: u64 = 1;
+
+/// Points splatted per pixel in pass `pass` (≥ 1).
+fn splat_paths_per_pixel(pass: u32) -> u64 {
+    if pass == 1 {
+        FIRST_SPLAT_PATHS_PER_PIXEL
+    } else {
+        SPLAT_PATHS_PER_PIXEL
+    }
+}
 
 /// What one chunk of [`Renderer::splat_pass`]'s walks left: their splats,
 /// discarded splats, number, and terms of the learned density's moments.
@@ -569,7 +584,7 @@ impl Renderer {
         }
     }
 
-    /// The splats of pass `pass` ([`circles`]): [`SPLAT_PATHS_PER_PIXEL`]
+    /// The splats of pass `pass` ([`circles`]): [`splat_paths_per_pixel`]
     /// paths per pixel, in
     /// chunks whose splats are added in the chunks' order, so the image
     /// does not depend on the thread count. Stops between batches of chunks
@@ -600,7 +615,8 @@ impl Renderer {
         let Some(splatter) = splatter else {
             return (0, 0);
         };
-        let paths_total = u64::from(film.width) * u64::from(film.height) * SPLAT_PATHS_PER_PIXEL;
+        let paths_total =
+            u64::from(film.width) * u64::from(film.height) * splat_paths_per_pixel(pass);
         let chunks = paths_total.div_ceil(CHUNK);
         let n = self.lanes_per_path();
         let (mut paths, mut discarded) = (0, 0);
@@ -806,19 +822,20 @@ mod tests {
             scene.render.height = 8;
             scene
         };
-        // Twilight: the draft pass splats nothing, every full pass 3 paths
-        // per pixel.
+        // Twilight: the draft pass splats nothing, the first full pass
+        // one point per pixel (from the prior), the later ones two.
         let twilight = Renderer::new(&small("twilight")).unwrap();
         let mut film = twilight.new_film();
         assert!(film.splats());
-        let stats: Vec<PassStats> = (0..3)
+        let stats: Vec<PassStats> = (0..4)
             .map(|pass| twilight.render_pass(&mut film, pass, &|| false))
             .collect();
         assert_eq!(stats[0].splat_paths, 0);
-        for s in &stats[1..] {
-            assert_eq!(s.splat_paths, 16 * 8 * SPLAT_PATHS_PER_PIXEL);
+        assert_eq!(stats[1].splat_paths, 16 * 8);
+        for s in &stats[2..] {
+            assert_eq!(s.splat_paths, 16 * 8 * 2);
         }
-        assert_eq!(film.splat_paths, 2 * 16 * 8 * SPLAT_PATHS_PER_PIXEL);
+        assert_eq!(film.splat_paths, 5 * 16 * 8);
         // The sun below the horizon but the observer above the air, or the
         // sun at the nadir: unset means off.
         let mut space = small("space");
