@@ -694,6 +694,8 @@ impl CircleSplatter {
     fn sample_polar(&self, learned: &LearnedPoints, rng: &mut Rng) -> (f64, f64) {
         let draw = |cdf: &[f64], u: f64| cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
         let (u, v, w) = (rng.uniform(), rng.uniform(), rng.uniform());
+        // The component's uniform, drawn only where there is a choice (as
+        // before learning existed: the same random numbers, the same walks).
         let mut x = if learned.is_learned() || !self.bins.is_empty() {
             rng.uniform()
         } else {
@@ -716,7 +718,8 @@ impl CircleSplatter {
     /// each splat's XYZ is the path's estimate for its pixel (the film
     /// divides by the number of paths). `wavelength_weights[j]` turns lane
     /// j's radiance into XYZ (K_m x̄ȳz̄(λ) / (its density × the lanes)).
-    /// The point is drawn with `learned`'s density.
+    /// The point is drawn with `learned`'s density; returns the splats
+    /// discarded and the walk's term of its cell's moment ([`Walked`]).
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &self,
