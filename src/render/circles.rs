@@ -434,7 +434,7 @@ pub struct CircleSplatter {
 /// paths found low in the shadow and the weight of the splats near the
 /// zenith and on the horizon (`BENCHMARKS.md`, session 23).
 ///
-/// A pass draws [`LEARNED_SHARE`] of its points from the learned density
+/// A pass draws 3/4 of its points (`LEARNED_SHARE`) from the learned density
 /// and the rest from the prior, so the density is positive wherever the
 /// prior's is, and fixed before the pass starts: every pass stays
 /// unbiased.
