@@ -410,8 +410,10 @@ pub struct CircleSplatter {
     /// view had weight (then the analytic density alone).
     bins: Vec<f64>,
     cdf: Vec<f64>,
-    /// The prior's (table and analytic parts') probability of each bin.
+    /// The prior's (table and analytic parts') probability of each bin,
+    /// and of each learned cell.
     prior_bins: Vec<f64>,
+    prior_cells: Vec<f64>,
     /// The column table's look-ups at the observer, where every splat's
     /// ray to the camera starts.
     observer: FixedStart,
@@ -465,6 +467,13 @@ impl LearnedPoints {
             self.moments[cell] += m;
         }
     }
+}
+
+/// [`CircleSplatter::polar_densities`] at one point.
+struct PolarDensities {
+    drawn: f64,
+    prior: f64,
+    bin: Option<usize>,
 }
 
 /// What one walk did: its splats discarded as not finite, and its term of
@@ -583,7 +592,11 @@ impl CircleSplatter {
                     TABLE_SHARE * bins[bin] + (1.0 - TABLE_SHARE) * analytic
                 }
             })
-            .collect();
+            .collect::<Vec<f64>>();
+        let mut prior_cells = vec![0.0; CELLS];
+        for (bin, p) in prior_bins.iter().enumerate() {
+            prior_cells[Self::cell(bin)] += p;
+        }
         Some(Self {
             axis,
             rho_max_m: rho_max,
@@ -591,6 +604,7 @@ impl CircleSplatter {
             bins,
             cdf,
             prior_bins,
+            prior_cells,
             observer,
         })
     }
@@ -629,15 +643,12 @@ impl CircleSplatter {
         if learned.moments.is_empty() {
             return;
         }
-        let mut prior = vec![0.0; CELLS];
-        for (bin, p) in self.prior_bins.iter().enumerate() {
-            prior[Self::cell(bin)] += p;
-        }
+        let prior = &self.prior_cells;
         // Each cell's mass ∝ √(S_b P_b).
         let mass: Vec<f64> = learned
             .moments
             .iter()
-            .zip(&prior)
+            .zip(prior)
             .map(|(s, p)| (s * p).sqrt())
             .collect();
         let total: f64 = mass.iter().sum();
@@ -668,27 +679,24 @@ impl CircleSplatter {
             .collect();
     }
 
-    /// The prior's density of (ρ, φ) per dρ dφ: table and analytic parts.
-    fn prior_density(&self, rho: f64, phi: f64) -> f64 {
-        let analytic = analytic_rho_density(rho, self.rho_max_m) / (2.0 * PI);
-        if self.bins.is_empty() {
-            return analytic;
-        }
-        let table = self
-            .bin(rho, phi)
-            .map_or(0.0, |bin| self.bins[bin] / self.bin_area(bin));
-        TABLE_SHARE * table + (1.0 - TABLE_SHARE) * analytic
-    }
-
-    /// Density of (ρ, φ) per dρ dφ: the prior's, or with `learned`'s part.
-    fn polar_density(&self, learned: &LearnedPoints, rho: f64, phi: f64) -> f64 {
-        let prior = self.prior_density(rho, phi);
-        if !learned.is_learned() {
-            return prior;
-        }
+    /// Densities of (ρ, φ) per dρ dφ: the one points are drawn from (the
+    /// prior's, or with `learned`'s part) and the prior's (table and
+    /// analytic parts), with the table bin holding (ρ, φ).
+    fn polar_densities(&self, learned: &LearnedPoints, rho: f64, phi: f64) -> PolarDensities {
         let bin = self.bin(rho, phi);
-        let learned = bin.map_or(0.0, |bin| learned.bins[bin] / self.bin_area(bin));
-        LEARNED_SHARE * learned + (1.0 - LEARNED_SHARE) * prior
+        let per_area = |bins: &[f64]| bin.map_or(0.0, |bin| bins[bin] / self.bin_area(bin));
+        let analytic = analytic_rho_density(rho, self.rho_max_m) / (2.0 * PI);
+        let prior = if self.bins.is_empty() {
+            analytic
+        } else {
+            TABLE_SHARE * per_area(&self.bins) + (1.0 - TABLE_SHARE) * analytic
+        };
+        let drawn = if learned.is_learned() {
+            LEARNED_SHARE * per_area(&learned.bins) + (1.0 - LEARNED_SHARE) * prior
+        } else {
+            prior
+        };
+        PolarDensities { drawn, prior, bin }
     }
 
     fn sample_polar(&self, learned: &LearnedPoints, rng: &mut Rng) -> (f64, f64) {
@@ -746,9 +754,9 @@ impl CircleSplatter {
         if half <= 0.0 {
             return nothing;
         }
-        let polar_density = self.polar_density(learned, rho, phi);
+        let densities = self.polar_densities(learned, rho, phi);
         // Density per dr dθ: per dρ dφ × r₀ / ρ.
-        let point_density = polar_density * axis.r0_m / rho;
+        let point_density = densities.drawn * axis.r0_m / rho;
         let arc = Arc::new(half, cauchy_scale(axis, r, theta));
         let y0 = axis.point(r, theta, 0.0);
         // A position's offset from the observer, and its camera direction
@@ -845,12 +853,10 @@ impl CircleSplatter {
             }
         }
         let squares: f64 = out[first..].iter().map(|s| s.xyz[1] * s.xyz[1]).sum();
-        let moment = (squares > 0.0)
-            .then(|| self.bin(rho, phi))
-            .flatten()
-            .map(|bin| (bin, self.prior_density(rho, phi)))
-            .filter(|&(_, prior)| prior > 0.0)
-            .map(|(bin, prior)| (Self::cell(bin), squares * polar_density / prior));
+        let moment = densities
+            .bin
+            .filter(|_| squares > 0.0 && densities.prior > 0.0)
+            .map(|bin| (Self::cell(bin), squares * densities.drawn / densities.prior));
         Walked { discarded, moment }
     }
 }
@@ -1071,7 +1077,7 @@ mod tests {
             let (mut sum, mut sum2) = (0.0, 0.0);
             for _ in 0..n {
                 let (rho, phi) = splatter.sample_polar(density, &mut rng);
-                let v = g(rho, phi) / splatter.polar_density(density, rho, phi);
+                let v = g(rho, phi) / splatter.polar_densities(density, rho, phi).drawn;
                 sum += v;
                 sum2 += v * v;
             }
