@@ -501,6 +501,9 @@ pub struct Machine {
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
     pub command: String,
+    /// A smoke run (`--quick`): budgets too small for the targets, so
+    /// none is judged (shown as "n/a", `target_met` null).
+    pub smoke: bool,
     pub machine: Machine,
     pub budget_s: f64,
     pub threads: usize,
@@ -884,7 +887,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
     });
     if !(budget_s.is_finite() && (0.01..=86_400.0).contains(&budget_s)) {
         return Err(format!(
-            "bench: invalid budget: {budget_s} is outside the valid range 0.01 to 86400 s"
+            "bench: invalid budget: {} is outside the valid range 0.01 to 86400 s",
+            crate::scene::show_number(budget_s)
         ));
     }
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
@@ -965,7 +969,9 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             first_frame_setup_ms: setup_ms,
             noise_target: target,
             time_to_target_s: time_to_target,
-            target_met: time_to_target.map(|t| t <= TARGET_BUDGET_S),
+            target_met: time_to_target
+                .filter(|_| !args.quick)
+                .map(|t| t <= TARGET_BUDGET_S),
             run: run.clone(),
         });
         if name != PREVIEW {
@@ -1035,6 +1041,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
     ];
     Ok(Report {
         command: std::env::args().collect::<Vec<_>>().join(" "),
+        smoke: args.quick,
         machine: Machine {
             cpus,
             model: cpu_model(),
@@ -1091,7 +1098,16 @@ pub fn format_report(report: &Report) -> String {
     use std::fmt::Write as _;
     let mut out = String::new();
     let m = &report.machine;
+    // A smoke run's budgets are far below the targets': judging them would
+    // read as failures that say nothing.
+    let yes_no = |ok: bool| if report.smoke { "n/a" } else { yes_no(ok) };
     let _ = writeln!(out, "command: {}", report.command);
+    if report.smoke {
+        let _ = writeln!(
+            out,
+            "smoke run (--quick): small budgets, targets not judged (n/a)"
+        );
+    }
     let _ = writeln!(
         out,
         "machine: {} CPU(s), {}; load average before: {}, after: {}",
@@ -1522,7 +1538,14 @@ mod tests {
             assert!(share > 0.0 && share < 1.5, "{share}");
         }
         assert!(report.scaling.is_some());
-        assert!(format_report(&report).contains("| midday |"));
+        let text = format_report(&report);
+        assert!(text.contains("| midday |"));
+        // A smoke run judges no target: no "NO" that would read as a failure.
+        assert!(report.smoke && report.details.iter().all(|d| d.target_met.is_none()));
+        assert!(
+            !text.contains("NO") && text.contains("targets not judged"),
+            "{text}"
+        );
     }
 
     #[test]

@@ -10,8 +10,8 @@ use clap::{Args, Parser, Subcommand};
 use crate::atmosphere::Atmosphere;
 use crate::output::{self, OutputFormat};
 use crate::physics::standard_atmosphere;
-use crate::render::{service, MirrorAxis, Renderer};
-use crate::scene::{CameraKind, Scene, SceneError, MAX_ALTITUDE_M};
+use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
+use crate::scene::{show_number, CameraKind, Scene, SceneError, MAX_ALTITUDE_M};
 
 /// Writes `text` to standard output. A reader that closed the pipe early
 /// (`skyrender radiance … | head -n 3`) ends the program quietly with
@@ -78,20 +78,25 @@ pub enum Command {
     Radiance {
         #[command(flatten)]
         scene: SceneArgs,
-        /// View zenith angle, degrees (0 = straight up).
-        #[arg(long, allow_hyphen_values = true)]
+        /// View zenith angle, degrees, 0 (straight up) to 180.
+        #[arg(long, allow_negative_numbers = true)]
         view_zenith: f64,
-        /// View azimuth, degrees clockwise from north.
-        #[arg(long, allow_hyphen_values = true)]
+        /// View azimuth, degrees clockwise from north, -360 to 720.
+        #[arg(long, allow_negative_numbers = true)]
         view_azimuth: f64,
-        /// One wavelength, nm.
-        #[arg(long, allow_hyphen_values = true, conflicts_with = "wavelengths")]
+        /// One wavelength, nm, 220 to 4000 [default: 550].
+        #[arg(long, allow_negative_numbers = true, conflicts_with = "wavelengths")]
         wavelength: Option<f64>,
         /// Wavelength range FROM:TO:STEP, nm.
         #[arg(long, value_name = "FROM:TO:STEP")]
         wavelengths: Option<String>,
-        /// Paths per wavelength.
-        #[arg(long, allow_hyphen_values = true, default_value_t = 10_000)]
+        /// Paths per wavelength, 1 to 2^30.
+        #[arg(
+            long,
+            allow_negative_numbers = true,
+            default_value_t = 10_000,
+            value_name = "N"
+        )]
         samples: i64,
         /// Print JSON.
         #[arg(long)]
@@ -102,7 +107,7 @@ pub enum Command {
         #[command(flatten)]
         scene: SceneArgs,
         /// Wavelength for the optical coefficients, nm.
-        #[arg(long, allow_hyphen_values = true, default_value_t = 550.0)]
+        #[arg(long, allow_negative_numbers = true, default_value_t = 550.0)]
         wavelength: f64,
         /// Print JSON.
         #[arg(long)]
@@ -114,40 +119,61 @@ pub enum Command {
     Bench(crate::bench::BenchArgs),
 }
 
-/// Scene selection and overrides shared by the subcommands.
+/// Scene selection and overrides shared by the subcommands. Every value
+/// flag overrides the scene (the preset, default `midday`, or `--scene`);
+/// "default" below is what `midday` and a scene file without the key give.
+/// Numbers take a leading minus (`--sun-elevation -4`), but a flag never
+/// swallows the next flag as its value (`--width -o x.exr` is an error
+/// about `--width`).
 #[derive(Args, Debug, Default, Clone)]
 pub struct SceneArgs {
-    /// Built-in preset (see `skyrender presets`).
-    #[arg(long, conflicts_with = "scene")]
+    /// Built-in preset (see `skyrender presets`) [default: midday].
+    #[arg(long, conflicts_with = "scene", value_name = "NAME")]
     pub preset: Option<String>,
-    /// Scene description (TOML).
+    /// Scene description (TOML; see README "Scene files").
     #[arg(long, value_name = "FILE.toml")]
     pub scene: Option<PathBuf>,
-    #[arg(long, allow_hyphen_values = true, value_name = "DEG")]
+    /// Sun elevation above the horizon, degrees, -90 to 90 (negative:
+    /// below it, twilight) [default: 45].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub sun_elevation: Option<f64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "DEG")]
+    /// Sun azimuth, degrees clockwise from north, -360 to 720 [default: 180, south].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub sun_azimuth: Option<f64>,
-    /// Observer altitude above the ground, m.
-    #[arg(long, allow_hyphen_values = true, value_name = "M")]
+    /// Observer altitude above the ground, metres, 0 to 1e8 [default: 2].
+    #[arg(long, allow_negative_numbers = true, value_name = "M")]
     pub altitude: Option<f64>,
-    /// perspective | equirect | fisheye
-    #[arg(long)]
+    /// Projection: equirect (a lat-long panorama), fisheye (looking up) or
+    /// perspective [default: equirect].
+    #[arg(long, value_name = "KIND")]
     pub camera: Option<String>,
-    #[arg(long, allow_hyphen_values = true, value_name = "DEG")]
+    /// Field of view, degrees: horizontal for perspective (1 to 179), the
+    /// circle's for fisheye (up to 360) [default: 90; fisheye 180].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub fov: Option<f64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "DEG")]
+    /// View direction, degrees clockwise from north (perspective and
+    /// fisheye; an equirect map stays geographic) [default: 0].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub yaw: Option<f64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "DEG")]
+    /// View elevation, degrees above the horizon, -90 to 90 (perspective)
+    /// [default: 0].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub pitch: Option<f64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "DEG")]
+    /// Rotation about the view axis, degrees, clockwise as seen by the
+    /// viewer (perspective) [default: 0].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub roll: Option<f64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "W")]
+    /// Image width, pixels, 1 to 65536 (at most 16384 × 8192 pixels in all)
+    /// [default: 512].
+    #[arg(long, allow_negative_numbers = true, value_name = "PIXELS")]
     pub width: Option<i64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "H")]
+    /// Image height, pixels, 1 to 65536 [default: 256].
+    #[arg(long, allow_negative_numbers = true, value_name = "PIXELS")]
     pub height: Option<i64>,
     /// Samples per pixel: passes over the image; with adaptive sampling, the
-    /// least samples a pixel gets (noisy regions get up to 16 per pass).
-    #[arg(long, allow_hyphen_values = true, value_name = "N")]
+    /// least samples a pixel gets (noisy regions get up to 16 per pass)
+    /// [default: 64].
+    #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub spp: Option<i64>,
     /// One sample per pixel per pass everywhere (no adaptive sampling).
     #[arg(long)]
@@ -156,26 +182,37 @@ pub struct SceneArgs {
     /// vertical plane (see `[render] mirror_symmetry`).
     #[arg(long)]
     pub no_mirror: bool,
+    /// Random seed, 0 to 2^63 - 1: the same scene and seed give the same
+    /// image at any thread count [default: 1].
     #[arg(long, allow_negative_numbers = true, value_name = "S")]
     pub seed: Option<u64>,
+    /// No aerosols (a Rayleigh sky with ozone).
     #[arg(long)]
     pub no_aerosols: bool,
+    /// No ozone absorption.
     #[arg(long)]
     pub no_ozone: bool,
-    #[arg(long, allow_hyphen_values = true, value_name = "X")]
+    /// Multiplier of Elterman's 1968 aerosol profile, 0 to 100 (1: vertical
+    /// optical depth 0.249 at 550 nm, a hazy day) [default: 1].
+    #[arg(long, allow_negative_numbers = true, value_name = "X")]
     pub aerosol_amount: Option<f64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "DU")]
+    /// Total ozone column, Dobson units, 0 to 2000 [default: the AFGL
+    /// profile's own, about 344].
+    #[arg(long, allow_negative_numbers = true, value_name = "DU")]
     pub ozone_du: Option<f64>,
-    #[arg(long, allow_hyphen_values = true, value_name = "A")]
+    /// Lambertian ground albedo, 0 to 1 [default: 0.3].
+    #[arg(long, allow_negative_numbers = true, value_name = "A")]
     pub ground_albedo: Option<f64>,
-    /// PNG exposure, EV (default: automatic).
-    #[arg(long, allow_hyphen_values = true, value_name = "EV")]
+    /// PNG exposure, EV, -50 to 50: a luminance of L cd/m² is shown as
+    /// L × 2^EV before the tone curve [default: automatic].
+    #[arg(long, allow_negative_numbers = true, value_name = "EV")]
     pub exposure: Option<f64>,
-    /// Top-of-atmosphere irradiance of 1 W m⁻² nm⁻¹ at every wavelength.
+    /// Top-of-atmosphere irradiance of 1 W m⁻² nm⁻¹ at every wavelength
+    /// (instead of the measured solar spectrum).
     #[arg(long)]
     pub unit_sun: bool,
-    /// Worker threads (default: all cores).
-    #[arg(long, allow_hyphen_values = true, value_name = "N")]
+    /// Worker threads, 1 to 1024 [default: all cores].
+    #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub threads: Option<i64>,
 }
 
@@ -208,7 +245,10 @@ impl SceneArgs {
             if !(v.is_finite() && (0.0..=MAX_ALTITUDE_M).contains(&v)) {
                 return Err(SceneError::new(
                     "altitude (m)",
-                    format!("{v} is outside the valid range 0 (the ground) to 1e8"),
+                    format!(
+                        "{} is outside the valid range 0 (the ground) to 1e8",
+                        show_number(v)
+                    ),
                 ));
             }
             scene.observer.altitude_m = v;
@@ -302,6 +342,36 @@ impl SceneArgs {
             .collect()
     }
 
+    /// Notes on flags given that `scene` does not use: camera flags its
+    /// projection ignores ([`Self::ignored_camera_flags`]), an aerosol
+    /// amount without aerosols, an ozone column without ozone. A note, not
+    /// an error: the render is still what was asked for.
+    pub fn notes(&self, scene: &Scene) -> Vec<String> {
+        let mut notes = Vec::new();
+        let ignored = self.ignored_camera_flags(scene.camera.kind);
+        if !ignored.is_empty() {
+            notes.push(format!(
+                "the {} camera does not use {} (README, \"Conventions\")",
+                scene.camera.kind.name(),
+                ignored.join(", ")
+            ));
+        }
+        if self.aerosol_amount.is_some() && !scene.atmosphere.aerosols {
+            notes.push("--aerosol-amount has no effect without aerosols (--no-aerosols, or `aerosols = false` in the scene)".into());
+        }
+        if self.ozone_du.is_some() && !scene.atmosphere.ozone {
+            notes.push("--ozone-du has no effect without ozone (--no-ozone, or `ozone = false` in the scene)".into());
+        }
+        notes
+    }
+
+    /// Prints [`Self::notes`] to standard error.
+    pub fn print_notes(&self, scene: &Scene) {
+        for note in self.notes(scene) {
+            eprintln!("skyrender: note: {note}");
+        }
+    }
+
     /// The requested number of worker threads (0: all cores), checked.
     pub fn threads(&self) -> Result<usize, SceneError> {
         self.threads
@@ -325,6 +395,8 @@ pub enum CliError {
     Scene(#[from] SceneError),
     #[error(transparent)]
     Output(#[from] output::OutputError),
+    #[error(transparent)]
+    Memory(#[from] OutOfMemory),
     #[error("{0}")]
     Other(String),
 }
@@ -378,9 +450,9 @@ pub fn render_to_file(
     let renderer = Renderer::new(scene)?;
     let total = scene.render.spp;
     let (film, paths) =
-        service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))
+        service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
             .ok_or_else(|| CliError::Other("render cancelled".into()))?;
-    let image = film.to_rgb();
+    let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
     output::write_image(
         path,
         &image,
@@ -397,7 +469,7 @@ fn parse_wavelengths(single: Option<f64>, range: Option<&str>) -> Result<Vec<f64
         } else {
             Err(SceneError::new(
                 "wavelength (nm)",
-                format!("{w} is outside the valid range 220 to 4000"),
+                format!("{} is outside the valid range 220 to 4000", show_number(w)),
             ))
         }
     };
@@ -434,18 +506,37 @@ fn parse_wavelengths(single: Option<f64>, range: Option<&str>) -> Result<Vec<f64
     }
 }
 
+/// The first sentence of a preset's leading comment, which may span lines.
+fn preset_summary(text: &str) -> String {
+    let comment: Vec<&str> = text
+        .lines()
+        .map_while(|line| line.strip_prefix('#'))
+        .map(str::trim)
+        .collect();
+    let joined = comment.join(" ");
+    // A sentence ends at a full stop followed by a space or the end (not at
+    // a decimal point, and not inside parentheses).
+    let mut depth = 0i32;
+    let chars: Vec<(usize, char)> = joined.char_indices().collect();
+    for (k, &(i, c)) in chars.iter().enumerate() {
+        match c {
+            '(' => depth += 1,
+            ')' => depth -= 1,
+            '.' if depth == 0 && chars.get(k + 1).is_none_or(|&(_, n)| n == ' ') => {
+                return joined[..=i].to_owned();
+            }
+            _ => {}
+        }
+    }
+    joined
+}
+
 /// Run a subcommand; returns the process exit code.
 pub fn run(command: Command) -> Result<(), CliError> {
     match command {
         Command::Presets => {
             for (name, text) in crate::scene::PRESETS {
-                let summary = text
-                    .lines()
-                    .next()
-                    .unwrap_or("")
-                    .trim_start_matches('#')
-                    .trim();
-                outln!("{name:<10} {summary}");
+                outln!("{name:<10} {}", preset_summary(text));
             }
             Ok(())
         }
@@ -456,14 +547,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let scene = args.build()?;
             check_output_path(&output)?;
             let pool = args.thread_pool()?;
-            let ignored = args.ignored_camera_flags(scene.camera.kind);
-            if !ignored.is_empty() {
-                eprintln!(
-                    "skyrender: note: the {} camera does not use {} (README, \"Conventions\")",
-                    scene.camera.kind.name(),
-                    ignored.join(", ")
-                );
-            }
+            args.print_notes(&scene);
             let bar = if std::io::stderr().is_terminal() {
                 let bar = indicatif::ProgressBar::new(u64::from(scene.render.spp));
                 bar.set_style(
@@ -524,17 +608,24 @@ pub fn run(command: Command) -> Result<(), CliError> {
             if !(view_zenith.is_finite() && (0.0..=180.0).contains(&view_zenith)) {
                 return Err(SceneError::new(
                     "view zenith (deg)",
-                    format!("{view_zenith} is outside the valid range 0 to 180"),
+                    format!(
+                        "{} is outside the valid range 0 to 180",
+                        show_number(view_zenith)
+                    ),
                 )
                 .into());
             }
             if !(view_azimuth.is_finite() && (-360.0..=720.0).contains(&view_azimuth)) {
                 return Err(SceneError::new(
                     "view azimuth (deg)",
-                    format!("{view_azimuth} is outside the valid range -360 to 720"),
+                    format!(
+                        "{} is outside the valid range -360 to 720",
+                        show_number(view_azimuth)
+                    ),
                 )
                 .into());
             }
+            args.print_notes(&scene);
             let samples = count("samples", samples, 1 << 30)?;
             let list = parse_wavelengths(wavelength, wavelengths.as_deref())?;
             let pool = args.thread_pool()?;
@@ -579,6 +670,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let scene = args.build()?;
             // Nothing here runs in parallel, but a bad --threads is still bad.
             args.threads()?;
+            args.print_notes(&scene);
             let altitude_m = scene.observer.altitude_m;
             parse_wavelengths(Some(wavelength), None)?;
             let atmosphere = Atmosphere::new(scene.atmosphere.clone());

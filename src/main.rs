@@ -24,6 +24,10 @@ fn main() {
             std::process::exit(2);
         }
     };
+    // Ctrl-C or a `kill` while a file is being written must not leave its
+    // temporary file behind; where the handler cannot be installed the
+    // writes stay atomic, only that clean-up is lost.
+    let _ = skyrender::output::atomic::remove_on_signals();
     let result = match cli.command {
         Some(command) => skyrender::cli::run(command).map_err(|e| e.to_string()),
         None => skyrender::app::run_app(
@@ -32,6 +36,8 @@ fn main() {
             cli.screenshot_after,
         ),
     };
+    // The app's window may close while an export is still writing.
+    skyrender::output::atomic::remove_pending_files();
     if let Err(message) = result {
         eprintln!("skyrender: error: {message}");
         std::process::exit(2);

@@ -214,13 +214,63 @@ fn toml_error(text: &str, error: &toml::de::Error) -> SceneError {
         let before = text.get(..span.start).unwrap_or(text);
         let line = before.matches('\n').count() + 1;
         let column = before.len() - before.rfind('\n').map_or(0, |i| i + 1) + 1;
-        format!("line {line}, column {column}: ")
+        let key = key_at(text, span.start)
+            .filter(|key| !error.message().contains(&format!("`{key}`")))
+            .map(|key| format!("`{key}`: "))
+            .unwrap_or_default();
+        // `[[sun]]` makes an array of tables where a table belongs.
+        let line_text = text[before.rfind('\n').map_or(0, |i| i + 1)..]
+            .lines()
+            .next()
+            .unwrap_or_default()
+            .trim();
+        let hint = line_text
+            .strip_prefix("[[")
+            .and_then(|l| l.strip_suffix("]]"))
+            .map(|name| format!(" (`[[{name}]]` is an array of tables: write `[{name}]`)"))
+            .unwrap_or_default();
+        (format!("line {line}, column {column}: {key}"), hint)
     });
-    SceneError::new(
-        "scene",
-        format!("{}{}", place.unwrap_or_default(), error.message().trim()),
-    )
+    let (place, hint) = place.unwrap_or_default();
+    SceneError::new("scene", format!("{place}{}{hint}", error.message().trim()))
 }
+
+/// The dotted key (`sun.elevation_deg`) that the TOML text defines at byte
+/// `offset`: the table header above it (or the header itself, when the
+/// offset falls on one) and the key left of the `=` on its line. Only for
+/// the plain layout scene files have; `None` where that does not fit, so a
+/// message never names a wrong key.
+fn key_at(text: &str, offset: usize) -> Option<String> {
+    let offset = offset.min(text.len());
+    let start = text.get(..offset)?.rfind('\n').map_or(0, |i| i + 1);
+    let end = text[start..].find('\n').map_or(text.len(), |i| start + i);
+    let header = |line: &str| {
+        let line = line.trim();
+        let inner = line
+            .strip_prefix("[[")
+            .and_then(|l| l.split("]]").next())
+            .or_else(|| line.strip_prefix('[').and_then(|l| l.split(']').next()))?;
+        Some(inner.trim().replace([' ', '"'], ""))
+    };
+    let line = &text[start..end];
+    if let Some(name) = header(line) {
+        return Some(name);
+    }
+    let (key, _) = line.split_once('=')?;
+    let key = key.trim().trim_matches('"');
+    if key.is_empty() || key.contains(char::is_whitespace) {
+        return None;
+    }
+    let table = text[..start].lines().rev().find_map(header);
+    Some(match table {
+        Some(table) if !table.is_empty() => format!("{table}.{key}"),
+        _ => key.to_owned(),
+    })
+}
+
+/// Largest scene file read: a scene is a few hundred bytes of TOML; a
+/// larger file is not one (`--scene /dev/urandom` would read for ever).
+pub const MAX_SCENE_FILE_BYTES: u64 = 1 << 20;
 
 /// A count within `lo..=hi`, or an error naming `parameter` and the range.
 fn check_count(parameter: &str, value: usize, lo: usize, hi: usize) -> Result<(), SceneError> {
@@ -239,8 +289,23 @@ fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), Scen
     } else {
         Err(SceneError::new(
             parameter,
-            format!("{value} is outside the valid range {lo} to {hi}"),
+            format!(
+                "{} is outside the valid range {lo} to {hi}",
+                show_number(value)
+            ),
         ))
+    }
+}
+
+/// A number as a message shows it: plainly where that is short, in
+/// scientific notation where plain digits would run long (`1e308`, not 309
+/// digits; `1.5e-9`, not a row of zeros).
+pub fn show_number(value: f64) -> String {
+    let magnitude = value.abs();
+    if value == 0.0 || !value.is_finite() || (1e-4..1e7).contains(&magnitude) {
+        format!("{value}")
+    } else {
+        format!("{value:e}")
     }
 }
 
@@ -293,12 +358,34 @@ impl Scene {
         Ok(scene)
     }
 
+    /// Reads a scene file: at most [`MAX_SCENE_FILE_BYTES`] of UTF-8 TOML.
     pub fn load(path: &Path) -> Result<Self, SceneError> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
+        use std::io::Read as _;
+        let fail = |reason: String| {
             SceneError::new(
                 "scene file",
-                format!("cannot read '{}': {e}", path.display()),
+                format!("cannot read '{}': {reason}", path.display()),
             )
+        };
+        if path.is_dir() {
+            return Err(fail("it is a directory".into()));
+        }
+        let file = std::fs::File::open(path).map_err(|e| fail(e.to_string()))?;
+        let mut bytes = Vec::new();
+        file.take(MAX_SCENE_FILE_BYTES + 1)
+            .read_to_end(&mut bytes)
+            .map_err(|e| fail(e.to_string()))?;
+        if bytes.len() as u64 > MAX_SCENE_FILE_BYTES {
+            return Err(fail(format!(
+                "it is larger than {} KiB, so not a scene (a scene is a short TOML file)",
+                MAX_SCENE_FILE_BYTES / 1024
+            )));
+        }
+        let text = String::from_utf8(bytes).map_err(|e| {
+            fail(format!(
+                "it is not UTF-8 text (byte {})",
+                e.utf8_error().valid_up_to()
+            ))
         })?;
         Self::from_toml(&text).map_err(|e| SceneError {
             parameter: e.parameter,

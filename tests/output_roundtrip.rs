@@ -190,7 +190,7 @@ fn png_round_trip_has_right_size_and_tone_mapping() {
     assert!((138..=144).contains(&expected[0]), "{expected:?}");
 
     // An explicit exposure is honoured: +30 EV over 100 cd/m² is white.
-    write_png(&path, &image, Some(30.0)).unwrap();
+    write_png(&path, &image, Some(30.0), &[]).unwrap();
     let rgb = image::open(&path).unwrap().to_rgb8();
     assert!(rgb.pixels().all(|pixel| pixel.0 == [255; 3]));
 }
@@ -300,7 +300,7 @@ fn overwriting_keeps_the_files_permissions_and_replaces_links() {
     fs::write(&real, b"old").unwrap();
     let link = dir.path().join("latest.png");
     std::os::unix::fs::symlink("real.png", &link).unwrap();
-    write_png(&link, &test_image(2, 2), None).unwrap();
+    write_png(&link, &test_image(2, 2), None, &[]).unwrap();
     assert!(fs::symlink_metadata(&link).unwrap().is_file());
     assert_eq!(&fs::read(&link).unwrap()[..4], b"\x89PNG");
     assert_eq!(fs::read(&real).unwrap(), b"old");

@@ -12,8 +12,6 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use image::ImageEncoder as _;
-
 use super::state::{DisplaySettings, ToneCurve};
 use crate::output::{self, check_writable, replace_file, OutputFormat};
 use crate::render::service::Frame;
@@ -163,12 +161,24 @@ pub fn save_view(
         }
         OutputFormat::Png => {
             let rgb = tonemap_rgb8(&frame.image, display);
-            write_png_atomic(
+            let text = [
+                ("skyrender:scene".to_owned(), scene.to_toml()),
+                (
+                    "skyrender:exposure_ev".to_owned(),
+                    format!("{:.4}", display.exposure_ev),
+                ),
+                (
+                    "skyrender:tone_curve".to_owned(),
+                    format!("{:?}", display.tone_curve),
+                ),
+            ];
+            write_png_bytes(
                 path,
                 frame.image.width,
                 frame.image.height,
                 &rgb,
-                image::ExtendedColorType::Rgb8,
+                png::ColorType::Rgb,
+                &text,
             )
         }
     }
@@ -182,6 +192,23 @@ pub fn write_png_atomic(
     bytes: &[u8],
     color: image::ExtendedColorType,
 ) -> Result<(), String> {
+    let color = match color {
+        image::ExtendedColorType::Rgba8 => png::ColorType::Rgba,
+        _ => png::ColorType::Rgb,
+    };
+    write_png_bytes(path, width, height, bytes, color, &[])
+}
+
+/// Write 8-bit sRGB pixels as a PNG with `text` chunks, atomically
+/// ([`output::encode_png`]).
+fn write_png_bytes(
+    path: &Path,
+    width: u32,
+    height: u32,
+    bytes: &[u8],
+    color: png::ColorType,
+    text: &[(String, String)],
+) -> Result<(), String> {
     let fail = |e: &dyn std::fmt::Display| format!("cannot write '{}': {e}", path.display());
     if path.is_dir() {
         return Err(fail(&"it is a directory"));
@@ -190,9 +217,7 @@ pub fn write_png_atomic(
         path,
         |e| fail(&e),
         |writer| {
-            image::codecs::png::PngEncoder::new(writer)
-                .write_image(bytes, width, height, color)
-                .map_err(|e| fail(&e))
+            output::encode_png(writer, width, height, bytes, color, text).map_err(|e| fail(&e))
         },
     )
 }

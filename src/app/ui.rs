@@ -596,7 +596,7 @@ impl SkyApp {
         let elapsed = started.elapsed();
         // Wait for a first frame, but not forever.
         let due = elapsed >= plan.after
-            && (self.frame.is_some() || elapsed >= plan.after + Duration::from_secs(60));
+            && (self.frame.is_some() || elapsed >= plan.after + Duration::from_mins(1));
         if !due {
             ctx.request_repaint_after(Duration::from_millis(50));
             return;

@@ -141,29 +141,57 @@ pub struct Film {
     pub(crate) learned_points: super::circles::LearnedPoints,
 }
 
+/// `n` copies of `value`, or an error where the memory is not there (not
+/// an abort, as `vec!` gives).
+pub(crate) fn try_filled<T: Clone>(
+    n: usize,
+    value: T,
+) -> Result<Vec<T>, std::collections::TryReserveError> {
+    let mut v = Vec::new();
+    v.try_reserve_exact(n)?;
+    v.resize(n, value);
+    Ok(v)
+}
+
 impl Film {
+    /// An empty film; aborts where memory runs out (see [`Self::try_new`]).
     pub fn new(width: u32, height: u32) -> Self {
-        Self {
+        Self::try_new(width, height).expect("memory for the film")
+    }
+
+    /// An empty film, or an error where its buffers cannot be allocated.
+    pub fn try_new(width: u32, height: u32) -> Result<Self, std::collections::TryReserveError> {
+        Ok(Self {
             width,
             height,
-            xyz_sum: vec![[0.0; 3]; width as usize * height as usize],
-            row_passes: vec![0; height as usize],
-            row_weights: vec![0.0; height as usize],
+            xyz_sum: try_filled(width as usize * height as usize, [0.0; 3])?,
+            row_passes: try_filled(height as usize, 0)?,
+            row_weights: try_filled(height as usize, 0.0)?,
             plan: Vec::new(),
-            row_planned_passes: vec![0; height as usize],
+            row_planned_passes: try_filled(height as usize, 0)?,
             discarded: 0,
             mirror: None,
             splat_sum: Vec::new(),
             splat_paths: 0,
             learned_points: super::circles::LearnedPoints::default(),
-        }
+        })
     }
 
     /// The film with a layer for the splats of [`super::circles`].
-    #[must_use]
-    pub(crate) fn with_splats(mut self) -> Self {
-        self.splat_sum = vec![[0.0; 3]; self.xyz_sum.len()];
-        self
+    pub(crate) fn try_with_splats(mut self) -> Result<Self, std::collections::TryReserveError> {
+        self.splat_sum = try_filled(self.xyz_sum.len(), [0.0; 3])?;
+        Ok(self)
+    }
+
+    /// Bytes held by the film's buffers.
+    pub fn buffer_bytes(&self) -> usize {
+        use std::mem::size_of_val;
+        size_of_val(self.xyz_sum.as_slice())
+            + size_of_val(self.row_passes.as_slice())
+            + size_of_val(self.row_weights.as_slice())
+            + size_of_val(self.plan.as_slice())
+            + size_of_val(self.row_planned_passes.as_slice())
+            + size_of_val(self.splat_sum.as_slice())
     }
 
     /// Whether the film has a splat layer.
@@ -293,14 +321,20 @@ impl Film {
 
     /// The current estimate as linear Rec.709 (Y in cd m⁻²).
     pub fn to_rgb(&self) -> RgbImage {
-        let pixels = (0..self.xyz_sum.len())
-            .map(|i| xyz_to_rec709(self.mean(i)).map(|c| c as f32))
-            .collect();
-        RgbImage {
+        self.try_to_rgb().expect("memory for the image")
+    }
+
+    /// [`Self::to_rgb`], or an error where the image's memory is not there.
+    pub fn try_to_rgb(&self) -> Result<RgbImage, std::collections::TryReserveError> {
+        let mut pixels = Vec::new();
+        pixels.try_reserve_exact(self.xyz_sum.len())?;
+        pixels
+            .extend((0..self.xyz_sum.len()).map(|i| xyz_to_rec709(self.mean(i)).map(|c| c as f32)));
+        Ok(RgbImage {
             width: self.width,
             height: self.height,
             pixels,
-        }
+        })
     }
 
     /// Fix every pixel's samples per pass for the passes to come from the
@@ -488,7 +522,7 @@ mod tests {
     #[test]
     fn with_splats_a_row_shows_its_draft_until_its_first_full_pass() {
         // 2×2 film; the draft pass gave every pixel XYZ 2 at weight 0.5.
-        let mut film = Film::new(2, 2).with_splats();
+        let mut film = Film::new(2, 2).try_with_splats().unwrap();
         film.xyz_sum.fill([1.0; 3]);
         film.row_passes.fill(1);
         film.row_weights.fill(0.5);
@@ -679,7 +713,7 @@ mod tests {
                     let j = mirror.partner(x as usize, y as usize, w as usize, h as usize);
                     // Samples so far: 1, plus the plan's in even rows.
                     let count = |k: usize| {
-                        let planned = (k / w as usize) % 2 == 0;
+                        let planned = (k / w as usize).is_multiple_of(2);
                         1.0 + if planned {
                             f64::from(film.plan[k])
                         } else {

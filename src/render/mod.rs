@@ -39,6 +39,22 @@ use crate::spectrum::{ColourMatching, K_M};
 use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
 use sunlight::CameraDensities;
 
+/// A render's buffers could not be allocated.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "not enough memory for a {width}×{height} render: it needs about {:.2} GiB; \
+     choose a smaller size (--width/--height) or free memory",
+    *bytes as f64 / f64::from(1u32 << 30)
+)]
+pub struct OutOfMemory {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// [`Renderer::memory_needed_bytes`].
+    pub bytes: u64,
+}
+
 /// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
 const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
 /// Points splatted per pixel in each pass after the first ([`circles`];
@@ -302,12 +318,55 @@ impl Renderer {
     }
 
     pub fn new_film(&self) -> Film {
-        let film =
-            Film::new(self.scene.render.width, self.scene.render.height).with_mirror(self.mirror);
+        self.try_new_film().unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Self::new_film`], or an error saying how much memory the image
+    /// needs where its buffers cannot be allocated.
+    pub fn try_new_film(&self) -> Result<Film, OutOfMemory> {
+        let film = Film::try_new(self.scene.render.width, self.scene.render.height)
+            .map_err(|_| self.out_of_memory())?
+            .with_mirror(self.mirror);
         if self.splatting {
-            film.with_splats()
+            film.try_with_splats().map_err(|_| self.out_of_memory())
         } else {
-            film
+            Ok(film)
+        }
+    }
+
+    /// About the most memory a render of this scene holds at once, bytes:
+    /// the film (XYZ sums, 12 bytes a pixel; the splat layer's as many
+    /// where the renderer splats; the adaptive plan's byte) and, on top, the
+    /// larger of the adaptive plan's working arrays (a pixel index, the
+    /// luminance, its spread, a bin and the plan: 19 bytes) and the output
+    /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3). The tables the
+    /// integrator reads do not grow with the image and are left out.
+    pub fn memory_needed_bytes(&self) -> u64 {
+        let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
+        let film = 12 + if self.splatting { 12 } else { 0 } + 1;
+        let planning = 8 + 4 + 4 + 2 + 1;
+        let output = 12 + 3;
+        pixels * (film + planning.max(output))
+    }
+
+    /// Checks, before any work, that [`Self::memory_needed_bytes`] can be
+    /// allocated (and frees it again), so a render too large for the
+    /// machine or its limits (`ulimit -v`) stops at once with a message
+    /// rather than aborting when a buffer fails to allocate hours later.
+    pub fn check_memory(&self) -> Result<(), OutOfMemory> {
+        let bytes =
+            usize::try_from(self.memory_needed_bytes()).map_err(|_| self.out_of_memory())?;
+        Vec::<u8>::new()
+            .try_reserve_exact(bytes)
+            .map_err(|_| self.out_of_memory())
+    }
+
+    /// The error for this scene's render not fitting in memory.
+    pub fn out_of_memory(&self) -> OutOfMemory {
+        OutOfMemory {
+            width: self.scene.render.width,
+            height: self.scene.render.height,
+            bytes: self.memory_needed_bytes(),
         }
     }
 
@@ -847,6 +906,31 @@ mod tests {
         // With the sun low (sunset, 2°): on; high (midday, 45°): off.
         assert!(Renderer::new(&small("sunset")).unwrap().new_film().splats());
         assert!(!Renderer::new(&small("midday")).unwrap().new_film().splats());
+    }
+
+    /// The memory estimate covers what a render holds: the film's buffers
+    /// after its plan, and the RGB image beside them.
+    #[test]
+    fn the_memory_estimate_covers_the_film_and_the_image() {
+        for name in ["sunset", "midday"] {
+            let mut scene = Scene::preset(name).unwrap();
+            scene.render.width = 16;
+            scene.render.height = 8;
+            let renderer = Renderer::new(&scene).unwrap();
+            renderer.check_memory().unwrap();
+            let mut film = renderer.try_new_film().unwrap();
+            for pass in 0..3 {
+                renderer.render_pass(&mut film, pass, &|| false);
+            }
+            assert!(film.is_planned());
+            let image = film.try_to_rgb().unwrap();
+            let held = film.buffer_bytes() + std::mem::size_of_val(image.pixels.as_slice());
+            let needed = renderer.memory_needed_bytes() as usize;
+            assert!(
+                held <= needed && needed < 4 * held,
+                "{name}: {held} held, {needed} estimated"
+            );
+        }
     }
 
     /// The sunset preset at 24×12, with adaptive sampling on or off, each

@@ -10,7 +10,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::{Film, Renderer};
+use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
 use crate::scene::Scene;
 
@@ -217,22 +217,25 @@ fn publish(
 }
 
 /// Render a scene to completion on the calling thread's rayon pool, reporting
-/// progress after each pass; returns `None` if `cancel` was set.
+/// progress after each pass; returns `None` if `cancel` was set, and an
+/// error before any work where the render's memory is not there
+/// ([`Renderer::check_memory`]).
 pub fn render_blocking(
     renderer: &Renderer,
     cancel: &AtomicBool,
     mut on_pass: impl FnMut(u32, &Film),
-) -> Option<(Film, u64)> {
-    let mut film = renderer.new_film();
+) -> Result<Option<(Film, u64)>, OutOfMemory> {
+    renderer.check_memory()?;
+    let mut film = renderer.try_new_film()?;
     let mut paths = 0;
     let is_cancelled = || cancel.load(Ordering::Relaxed);
     for pass in 0..renderer.scene.render.spp {
         let stats = renderer.render_pass(&mut film, pass, &is_cancelled);
         paths += stats.paths;
         if !stats.completed {
-            return None;
+            return Ok(None);
         }
         on_pass(pass + 1, &film);
     }
-    Some((film, paths))
+    Ok(Some((film, paths)))
 }

@@ -51,9 +51,12 @@
 //!
 //! # Atomic writes
 //!
-//! Files are first written to a hidden temporary file in the target's directory, flushed and
-//! synced, then renamed over the target. A failed write leaves the target untouched (absent, or
-//! the previous file) and removes the temporary file.
+//! Files are first written to a temporary file in the target's directory (unnamed on Linux),
+//! flushed and synced, then put in the target's place in one step ([`atomic`]). A failed or
+//! interrupted write leaves the target untouched (absent, or the previous file) and no
+//! temporary file.
+
+pub mod atomic;
 
 use std::collections::HashSet;
 use std::fs::File;
@@ -65,7 +68,6 @@ use exr::prelude::{
     AttributeValue, Encoding, Image as ExrImage, Layer, LayerAttributes, SpecificChannels, Text,
     Vec2, WritableImage,
 };
-use image::ImageEncoder as _;
 use rayon::prelude::*;
 
 /// Linear Rec.709 RGB image, row-major, top row first; values scaled so that
@@ -137,7 +139,7 @@ pub enum OutputError {
         /// Target path.
         path: PathBuf,
         /// Underlying encoder error.
-        source: image::ImageError,
+        source: png::EncodingError,
     },
 }
 
@@ -174,7 +176,8 @@ impl OutputFormat {
 
 /// Writes `image` to `path`, choosing the format from the extension (see [`OutputFormat`]).
 ///
-/// `metadata` is used by EXR only; `exposure_ev` by PNG only (`None` = [`auto_exposure_ev`]).
+/// `metadata` goes into the EXR header or the PNG's text chunks; `exposure_ev` is used by PNG
+/// only (`None` = [`auto_exposure_ev`]).
 /// The extension is checked before anything is written.
 pub fn write_image(
     path: &Path,
@@ -184,7 +187,7 @@ pub fn write_image(
 ) -> Result<(), OutputError> {
     match OutputFormat::from_path(path)? {
         OutputFormat::Exr => write_exr(path, image, metadata),
-        OutputFormat::Png => write_png(path, image, exposure_ev),
+        OutputFormat::Png => write_png(path, image, exposure_ev, metadata),
     }
 }
 
@@ -328,29 +331,62 @@ fn sort_header_attributes(file: &mut File) -> io::Result<()> {
 /// Writes `image` tone-mapped to 8-bit sRGB PNG, atomically.
 ///
 /// `exposure_ev` as described in the module documentation; `None` uses [`auto_exposure_ev`].
+/// The file says it is sRGB (an `sRGB` chunk) and carries `metadata` and the exposure used
+/// (`skyrender:exposure_ev`) as text chunks ([`encode_png`]).
 /// The extension of `path` is not checked.
 pub fn write_png(
     path: &Path,
     image: &RgbImage,
     exposure_ev: Option<f32>,
+    metadata: &[(String, String)],
 ) -> Result<(), OutputError> {
     checked_size(path, image)?;
     let exposure_ev = exposure_ev.unwrap_or_else(|| auto_exposure_ev(image));
     let srgb = tonemap_to_srgb8(image, exposure_ev);
-
+    let mut text = metadata.to_vec();
+    text.push(("skyrender:exposure_ev".into(), format!("{exposure_ev:.4}")));
     write_atomically(path, |writer| {
-        image::codecs::png::PngEncoder::new(writer)
-            .write_image(
-                srgb.as_flattened(),
-                image.width,
-                image.height,
-                image::ExtendedColorType::Rgb8,
-            )
-            .map_err(|source| OutputError::Png {
-                path: path.to_path_buf(),
-                source,
-            })
+        encode_png(
+            writer,
+            image.width,
+            image.height,
+            srgb.as_flattened(),
+            png::ColorType::Rgb,
+            &text,
+        )
+        .map_err(|source| OutputError::Png {
+            path: path.to_path_buf(),
+            source,
+        })
     })
+}
+
+/// Encodes 8-bit sRGB pixels (`Rgb` or `Rgba`, row-major) as a PNG with an
+/// `sRGB` chunk (perceptual intent, so viewers need no gamma guess),
+/// `Software`, and each `(key, value)` of `text` as an international text
+/// chunk (`iTXt`, UTF-8: a scene's TOML may hold any text).
+pub fn encode_png(
+    writer: impl Write,
+    width: u32,
+    height: u32,
+    pixels: &[u8],
+    color: png::ColorType,
+    text: &[(String, String)],
+) -> Result<(), png::EncodingError> {
+    let mut encoder = png::Encoder::new(writer, width, height);
+    encoder.set_color(color);
+    encoder.set_depth(png::BitDepth::Eight);
+    encoder.set_source_srgb(png::SrgbRenderingIntent::Perceptual);
+    encoder.add_text_chunk(
+        "Software".into(),
+        concat!("skyrender ", env!("CARGO_PKG_VERSION")).into(),
+    )?;
+    for (key, value) in text {
+        encoder.add_itxt_chunk(key.clone(), value.clone())?;
+    }
+    let mut writer = encoder.write_header()?;
+    writer.write_image_data(pixels)?;
+    writer.finish()
 }
 
 /// Checks that the image is non-empty and its buffer matches its size; returns (width, height).
@@ -388,11 +424,11 @@ fn write_atomically(
 }
 
 /// Replaces the file at `path` with what `write` writes, atomically: into a
-/// hidden temporary file beside it ([`temp_file_in`]), synced, then renamed
-/// over it. On error the temporary file is deleted (when the `NamedTempFile`
-/// is dropped) and `path` is left as it was; `io_error` turns I/O errors
-/// into the caller's. A regular file replaced keeps its permissions (Unix);
-/// a symbolic link at `path` is replaced by the new file, as `sed -i` and
+/// temporary file beside it ([`atomic::PendingFile`]: unnamed on Linux),
+/// synced, then put in place in one step. On error the temporary file is
+/// gone and `path` is left as it was; `io_error` turns I/O errors into the
+/// caller's. A regular file replaced keeps its permissions (Unix); a
+/// symbolic link at `path` is replaced by the new file, as `sed -i` and
 /// most atomic writers do, and what it pointed to is left alone.
 pub fn replace_file<E>(
     path: &Path,
@@ -402,9 +438,9 @@ pub fn replace_file<E>(
     let directory = parent_dir(path);
     // Report a missing directory plainly, rather than via the temp file's name.
     std::fs::metadata(directory).map_err(&io_error)?;
-    let mut temp = temp_file_in(directory).map_err(&io_error)?;
+    let mut temp = atomic::PendingFile::create_in(directory).map_err(&io_error)?;
     {
-        let mut writer = BufWriter::new(temp.as_file_mut());
+        let mut writer = BufWriter::new(temp.file_mut());
         write(&mut writer)?;
         writer.flush().map_err(&io_error)?;
     }
@@ -413,14 +449,13 @@ pub fn replace_file<E>(
     #[cfg(unix)]
     if let Ok(existing) = std::fs::symlink_metadata(path) {
         if existing.is_file() {
-            temp.as_file()
+            temp.file()
                 .set_permissions(existing.permissions())
                 .map_err(&io_error)?;
         }
     }
-    temp.as_file().sync_all().map_err(&io_error)?;
-    temp.persist(path).map_err(|error| io_error(error.error))?;
-    Ok(())
+    temp.file().sync_all().map_err(&io_error)?;
+    temp.commit(path).map_err(&io_error)
 }
 
 /// Middle grey: the display value the log-average luminance is mapped to (Reinhard's key).
@@ -431,17 +466,6 @@ pub fn parent_dir(path: &Path) -> &Path {
         Some(parent) if !parent.as_os_str().is_empty() => parent,
         _ => Path::new("."),
     }
-}
-
-/// A hidden temporary file in `dir`, to be renamed over its target: like
-/// `File::create`, mode 0o666 minus the umask on Unix (tempfile's default
-/// is a private 0o600).
-pub fn temp_file_in(dir: &Path) -> std::io::Result<tempfile::NamedTempFile> {
-    let mut builder = tempfile::Builder::new();
-    builder.prefix(".skyrender-").suffix(".tmp");
-    #[cfg(unix)]
-    builder.permissions(std::os::unix::fs::PermissionsExt::from_mode(0o666));
-    builder.tempfile_in(dir)
 }
 
 /// Longest file name most file systems take (`NAME_MAX`: bytes on Linux
@@ -492,14 +516,16 @@ pub fn check_writable(path: &Path) -> Result<(), String> {
     if let Err(e) = std::fs::metadata(directory) {
         return fail(format!("directory '{}': {e}", directory.display()));
     }
-    temp_file_in(directory).map(drop).map_err(|e| {
-        format!(
-            "cannot write '{}': cannot create a file in '{}' ({})",
-            path.display(),
-            directory.display(),
-            e.kind()
-        )
-    })
+    atomic::PendingFile::create_in(directory)
+        .map(drop)
+        .map_err(|e| {
+            format!(
+                "cannot write '{}': cannot create a file in '{}' ({})",
+                path.display(),
+                directory.display(),
+                e.kind()
+            )
+        })
 }
 
 /// Fraction of the brightest valid pixels ignored by [`auto_exposure_ev`] (e.g. the sun).
@@ -830,7 +856,7 @@ mod tests {
             pixels: vec![],
         };
         assert!(matches!(
-            write_png(path, &empty, None),
+            write_png(path, &empty, None, &[]),
             Err(OutputError::InvalidImage { .. })
         ));
         assert!(!path.exists());
