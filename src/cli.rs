@@ -140,6 +140,24 @@ pub struct SceneArgs {
     /// Sun azimuth, degrees clockwise from north, -360 to 720 [default: 180, south].
     #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub sun_azimuth: Option<f64>,
+    /// Local date and time with UTC offset (RFC 3339, e.g.
+    /// 2013-05-27T11:45:00-04:00): with --lat and --lon, places the Sun
+    /// by NREL's SPA (true elevation, no refraction) and sets the Earth–Sun
+    /// distance [default: none, the Sun by --sun-elevation/--sun-azimuth].
+    #[arg(long, value_name = "DATE_TIME", conflicts_with_all = ["sun_elevation", "sun_azimuth"])]
+    pub time: Option<String>,
+    /// Observer's latitude, degrees north, -90 to 90 (with --time)
+    /// [default: none].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
+    pub lat: Option<f64>,
+    /// Observer's longitude, degrees east, -180 to 180 (with --time)
+    /// [default: none].
+    #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
+    pub lon: Option<f64>,
+    /// Earth–Sun distance, AU, 0.3 to 50: the solar irradiance scales as
+    /// 1/d² [default: the date's with --time, else 1].
+    #[arg(long, allow_negative_numbers = true, value_name = "AU")]
+    pub sun_distance: Option<f64>,
     /// Observer altitude above the ground, metres, 0 to 1e8 [default: 2].
     #[arg(long, allow_negative_numbers = true, value_name = "M")]
     pub altitude: Option<f64>,
@@ -235,11 +253,33 @@ impl SceneArgs {
             (Some(name), None) => Scene::preset(name)?,
             (None, None) => Scene::preset("midday")?,
         };
+        if (self.sun_elevation.is_some() || self.sun_azimuth.is_some())
+            && scene.sun.date_time.is_some()
+            && self.time.is_none()
+        {
+            return Err(SceneError::new(
+                "sun",
+                "the scene places the Sun by its date_time: give --time (with --lat/--lon) \
+                 or remove date_time from the scene to set --sun-elevation/--sun-azimuth",
+            ));
+        }
         if let Some(v) = self.sun_elevation {
             scene.sun.elevation_deg = v;
         }
         if let Some(v) = self.sun_azimuth {
             scene.sun.azimuth_deg = v;
+        }
+        if let Some(t) = &self.time {
+            scene.sun.date_time = Some(t.clone());
+        }
+        if let Some(v) = self.lat {
+            scene.sun.latitude_deg = Some(v);
+        }
+        if let Some(v) = self.lon {
+            scene.sun.longitude_deg = Some(v);
+        }
+        if let Some(v) = self.sun_distance {
+            scene.sun.distance_au = Some(v);
         }
         if let Some(v) = self.altitude {
             if !(v.is_finite() && (0.0..=MAX_ALTITUDE_M).contains(&v)) {
@@ -315,6 +355,8 @@ impl SceneArgs {
         if self.unit_sun {
             scene.render.unit_sun = true;
         }
+        // After the altitude: the Sun's topocentric place depends on it.
+        scene.place_sun()?;
         scene.validate()?;
         Ok(scene)
     }

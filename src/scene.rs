@@ -7,19 +7,40 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::atmosphere::AtmosphereParams;
+use crate::physics::solar_position::{self, SunPlacement};
 use crate::render::IntegratorOptions;
 use crate::spectrum::Observer;
 
 /// Highest observer altitude accepted, m.
 pub const MAX_ALTITUDE_M: f64 = 1e8;
 
+/// Where the Sun is and how far: by hand (elevation and azimuth), or from a
+/// date, a time and a place ([`crate::physics::solar_position`]), which then
+/// sets the elevation and azimuth ([`Scene::place_sun`]).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct Sun {
-    /// Elevation above the observer's astronomical horizon, degrees.
+    /// Elevation above the observer's astronomical horizon, degrees (true,
+    /// unrefracted: the renderer has no refraction).
     pub elevation_deg: f64,
     /// Azimuth, degrees clockwise from north.
     pub azimuth_deg: f64,
+    /// Local date and time with its UTC offset (RFC 3339,
+    /// `2013-05-27T11:45:00-04:00`); with `latitude_deg` and
+    /// `longitude_deg`, places the Sun by NREL's SPA.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub date_time: Option<String>,
+    /// Observer's latitude, degrees north (−90 to 90).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub latitude_deg: Option<f64>,
+    /// Observer's longitude, degrees east (−180 to 180).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub longitude_deg: Option<f64>,
+    /// Earth–Sun distance, AU, scaling the solar irradiance by 1/d²; unset:
+    /// the date's distance where `date_time` is given, else 1 AU (the
+    /// solar spectrum's own distance).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub distance_au: Option<f64>,
 }
 
 impl Default for Sun {
@@ -27,6 +48,10 @@ impl Default for Sun {
         Self {
             elevation_deg: 45.0,
             azimuth_deg: 180.0,
+            date_time: None,
+            latitude_deg: None,
+            longitude_deg: None,
+            distance_au: None,
         }
     }
 }
@@ -354,8 +379,63 @@ impl Scene {
         if fisheye_without_fov {
             scene.camera.fov_deg = CameraKind::Fisheye.default_fov_deg();
         }
+        scene.place_sun()?;
         scene.validate()?;
         Ok(scene)
+    }
+
+    /// The Sun for the scene's date, time and place, if it has them.
+    pub fn sun_from_date(&self) -> Result<Option<SunPlacement>, SceneError> {
+        let Some(text) = &self.sun.date_time else {
+            return Ok(None);
+        };
+        let fail = |parameter: &str, message: String| SceneError::new(parameter, message);
+        let date_time =
+            solar_position::parse_date_time(text).map_err(|e| fail("sun date_time", e))?;
+        let (Some(latitude_deg), Some(longitude_deg)) =
+            (self.sun.latitude_deg, self.sun.longitude_deg)
+        else {
+            return Err(fail(
+                "sun date_time",
+                "a date and time place the Sun only with latitude_deg and longitude_deg \
+                 (--lat and --lon)"
+                    .into(),
+            ));
+        };
+        check_range("latitude (deg)", latitude_deg, -90.0, 90.0)?;
+        check_range("longitude (deg)", longitude_deg, -180.0, 180.0)?;
+        let delta_t_s = solar_position::estimated_delta_t_s(&date_time)
+            .map_err(|e| fail("sun date_time", e))?;
+        solar_position::sun_at(
+            &date_time,
+            latitude_deg,
+            longitude_deg,
+            self.observer.altitude_m,
+            delta_t_s,
+        )
+        .map(Some)
+        .map_err(|e| fail("sun date_time", e))
+    }
+
+    /// Sets the Sun's elevation and azimuth from the scene's date, time and
+    /// place (if it has them; otherwise leaves them as given).
+    pub fn place_sun(&mut self) -> Result<(), SceneError> {
+        if let Some(sun) = self.sun_from_date()? {
+            self.sun.elevation_deg = sun.elevation_deg;
+            self.sun.azimuth_deg = sun.azimuth_deg;
+        }
+        Ok(())
+    }
+
+    /// The Earth–Sun distance the render uses, AU: `distance_au`, else the
+    /// date's, else 1.
+    pub fn sun_distance_au(&self) -> f64 {
+        self.sun.distance_au.unwrap_or_else(|| {
+            self.sun_from_date()
+                .ok()
+                .flatten()
+                .map_or(1.0, |sun| sun.distance_au)
+        })
     }
 
     /// Reads a scene file: at most [`MAX_SCENE_FILE_BYTES`] of UTF-8 TOML.
@@ -401,6 +481,19 @@ impl Scene {
     pub fn validate(&self) -> Result<(), SceneError> {
         check_range("sun elevation (deg)", self.sun.elevation_deg, -90.0, 90.0)?;
         check_range("sun azimuth (deg)", self.sun.azimuth_deg, -360.0, 720.0)?;
+        if let Some(d) = self.sun.distance_au {
+            // Mercury's perihelion (0.307 AU) to beyond Pluto's aphelion.
+            check_range("sun distance (AU)", d, 0.3, 50.0)?;
+        }
+        if self.sun.date_time.is_none()
+            && (self.sun.latitude_deg.is_some() || self.sun.longitude_deg.is_some())
+        {
+            return Err(SceneError::new(
+                "sun latitude/longitude",
+                "a place needs a date and time to place the Sun (date_time, --time)",
+            ));
+        }
+        self.sun_from_date()?;
         check_range(
             "altitude (m)",
             self.observer.altitude_m,

@@ -97,3 +97,33 @@ fn aerosol_optical_depth_at_550_nm_is_plausible_for_25_km_visibility() {
     // Elterman's clear standard atmosphere: τ_aer(550) ≈ 0.25 (0.380 at 340 nm × 0.66).
     assert!((0.2..0.3).contains(&tau), "{tau}");
 }
+
+/// NREL's SPA against pvlib's independent implementation of it
+/// (`data/sun_positions_pvlib.csv`: 24 dates and places, polar day and
+/// night among them): true elevation and azimuth within 0.01°, the
+/// Earth–Sun distance within 1e-6 AU.
+#[test]
+fn the_sun_is_where_pvlib_puts_it() {
+    use skyrender::physics::solar_position::{parse_date_time, sun_at};
+    let text = include_str!("../data/sun_positions_pvlib.csv");
+    let mut rows = 0;
+    let (mut polar_day, mut polar_night) = (false, false);
+    for line in text.lines().skip(1) {
+        let f: Vec<&str> = line.split(',').collect();
+        let number = |i: usize| f[i].parse::<f64>().unwrap();
+        let t = parse_date_time(f[0]).unwrap();
+        let sun = sun_at(&t, number(1), number(2), number(3), number(4)).unwrap();
+        let (elevation, azimuth, distance) = (number(5), number(6), number(7));
+        let azimuth_error = ((sun.azimuth_deg - azimuth + 540.0) % 360.0 - 180.0).abs();
+        assert!(
+            (sun.elevation_deg - elevation).abs() < 0.01,
+            "{line}: {sun:?}"
+        );
+        assert!(azimuth_error < 0.01, "{line}: {sun:?}");
+        assert!((sun.distance_au - distance).abs() < 1e-6, "{line}: {sun:?}");
+        polar_day |= f[8].contains("polar day") && elevation > 0.0;
+        polar_night |= f[8].contains("polar night") && elevation < 0.0;
+        rows += 1;
+    }
+    assert!(rows >= 20 && polar_day && polar_night);
+}

@@ -7,6 +7,7 @@
 pub mod aerosol;
 pub mod ozone;
 pub mod rayleigh;
+pub mod solar_position;
 pub mod standard_atmosphere;
 pub mod sun;
 

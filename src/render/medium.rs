@@ -283,16 +283,61 @@ pub struct SpectralLanes {
 /// 11 tabulated temperatures.
 type LaneConstants = [f64; 4 + 11];
 
-fn lane_constants(wavelength_nm: f64, medium: &Medium, unit_sun: bool) -> LaneConstants {
+/// The solar spectral irradiance at the top of the atmosphere that the
+/// lanes carry.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum SolarSource {
+    /// 1 W m⁻² nm⁻¹ at every wavelength (`unit_sun`).
+    Unit,
+    /// The measured spectrum at 1 AU times `scale`: 1/d² at d AU, since
+    /// the irradiance falls with the square of the distance.
+    Measured {
+        /// Factor on the 1 AU spectrum.
+        scale: f64,
+    },
+}
+
+impl SolarSource {
+    /// `Unit`, or the measured spectrum at 1 AU.
+    pub fn from_unit_sun(unit_sun: bool) -> Self {
+        if unit_sun {
+            Self::Unit
+        } else {
+            Self::Measured { scale: 1.0 }
+        }
+    }
+
+    /// `Unit`, or the measured spectrum at `distance_au`.
+    pub fn at_distance(unit_sun: bool, distance_au: f64) -> Self {
+        if unit_sun {
+            Self::Unit
+        } else {
+            Self::Measured {
+                scale: (distance_au * distance_au).recip(),
+            }
+        }
+    }
+
+    fn irradiance_w_m2_nm(self, wavelength_nm: f64) -> f64 {
+        match self {
+            Self::Unit => 1.0,
+            // At 1 AU exactly the table's own value, bit for bit.
+            Self::Measured { scale: 1.0 } => {
+                sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm)
+            }
+            Self::Measured { scale } => {
+                scale * sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm)
+            }
+        }
+    }
+}
+
+fn lane_constants(wavelength_nm: f64, medium: &Medium, source: SolarSource) -> LaneConstants {
     let mut c = [0.0; 15];
     c[0] = rayleigh::cross_section_m2(wavelength_nm);
     c[1] = rayleigh::phase_gamma(wavelength_nm);
     c[2] = aerosol::SpectralFactor::get().at(wavelength_nm);
-    c[3] = if unit_sun {
-        1.0
-    } else {
-        sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm)
-    };
+    c[3] = source.irradiance_w_m2_nm(wavelength_nm);
     if medium.ozone_on {
         c[4..].copy_from_slice(&ozone::CrossSections::get().at_wavelength(wavelength_nm));
     }
@@ -311,28 +356,28 @@ pub struct LaneTable {
     first_nm: f64,
     step_nm: f64,
     rows: Vec<LaneConstants>,
-    unit_sun: bool,
+    source: SolarSource,
 }
 
 impl LaneTable {
     const STEP_NM: f64 = 0.25;
 
-    pub fn new(medium: &Medium, (from_nm, to_nm): (f64, f64), unit_sun: bool) -> Self {
+    pub fn new(medium: &Medium, (from_nm, to_nm): (f64, f64), source: SolarSource) -> Self {
         let count = ((to_nm - from_nm) / Self::STEP_NM).ceil() as usize + 1;
         Self {
             first_nm: from_nm,
             step_nm: Self::STEP_NM,
             rows: (0..count)
-                .map(|i| lane_constants(from_nm + i as f64 * Self::STEP_NM, medium, unit_sun))
+                .map(|i| lane_constants(from_nm + i as f64 * Self::STEP_NM, medium, source))
                 .collect(),
-            unit_sun,
+            source,
         }
     }
 
     fn constants(&self, wavelength_nm: f64, medium: &Medium) -> LaneConstants {
         let x = (wavelength_nm - self.first_nm) / self.step_nm;
         if !(x >= 0.0 && x < (self.rows.len() - 1) as f64) {
-            return lane_constants(wavelength_nm, medium, self.unit_sun);
+            return lane_constants(wavelength_nm, medium, self.source);
         }
         let i = x as usize;
         let f = x - i as f64;
@@ -353,11 +398,26 @@ impl LaneTable {
 
 impl SpectralLanes {
     pub fn new(wavelengths_nm: Lanes, active: usize, medium: &Medium, unit_sun: bool) -> Self {
+        Self::with_source(
+            wavelengths_nm,
+            active,
+            medium,
+            SolarSource::from_unit_sun(unit_sun),
+        )
+    }
+
+    /// [`Self::new`] with the sun's irradiance from `source`.
+    pub fn with_source(
+        wavelengths_nm: Lanes,
+        active: usize,
+        medium: &Medium,
+        source: SolarSource,
+    ) -> Self {
         Self::from_constants(
             wavelengths_nm,
             active,
             medium,
-            &wavelengths_nm.map(|w| lane_constants(w, medium, unit_sun)),
+            &wavelengths_nm.map(|w| lane_constants(w, medium, source)),
         )
     }
 
@@ -1196,7 +1256,7 @@ mod tests {
     #[test]
     fn lane_table_reproduces_the_direct_constants() {
         let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
-        let table = LaneTable::new(&medium, (360.0, 830.0), false);
+        let table = LaneTable::new(&medium, (360.0, 830.0), SolarSource::from_unit_sun(false));
         let mut rng = Rng::new(3, 4);
         let mut worst = 0.0_f64;
         for _ in 0..2_000 {

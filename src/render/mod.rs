@@ -30,7 +30,15 @@ use rayon::prelude::*;
 pub use camera::{direction_from_az_el, Camera};
 pub use film::{Film, Mirror, MirrorAxis};
 pub use integrator::{Integrator, IntegratorOptions, Sampler};
-pub use medium::{LaneTable, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
+pub use medium::{
+    LaneTable, Lanes, Medium, SolarSource, SpectralLanes, TransmittanceEstimator, LANES,
+};
+
+/// The sun's irradiance for `scene`: unit, or the measured spectrum at the
+/// scene's Earth–Sun distance ([`Scene::sun_distance_au`]).
+pub fn solar_source(scene: &Scene) -> SolarSource {
+    SolarSource::at_distance(scene.render.unit_sun, scene.sun_distance_au())
+}
 
 use crate::atmosphere::Atmosphere;
 use crate::rng::{mix64, Rng, SOBOL_POINTS};
@@ -301,7 +309,7 @@ impl Renderer {
             observer_m,
             sun_direction,
             cmf,
-            lane_table: LaneTable::new(&medium, cmf.range_nm(), scene.render.unit_sun),
+            lane_table: LaneTable::new(&medium, cmf.range_nm(), solar_source(scene)),
             scene: scene.clone(),
             atmosphere,
             medium,
@@ -770,11 +778,11 @@ impl Renderer {
             .flat_map_iter(|(chunk_index, chunk)| {
                 let mut lane_wavelengths = [chunk[0]; LANES];
                 lane_wavelengths[..chunk.len()].copy_from_slice(chunk);
-                let lanes = SpectralLanes::new(
+                let lanes = SpectralLanes::with_source(
                     lane_wavelengths,
                     chunk.len(),
                     &self.medium,
-                    self.scene.render.unit_sun,
+                    solar_source(&self.scene),
                 );
                 let mut sum = [0.0; LANES];
                 let mut sum2 = [0.0; LANES];
