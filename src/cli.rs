@@ -60,8 +60,11 @@ pub struct Cli {
     )]
     pub screenshot_after: f64,
     /// Preview app: start from this preset.
-    #[arg(long, value_name = "NAME")]
+    #[arg(long, value_name = "NAME", conflicts_with = "scene")]
     pub preset: Option<String>,
+    /// Preview app: start from this scene description (TOML).
+    #[arg(long, value_name = "FILE.toml")]
+    pub scene: Option<PathBuf>,
 }
 
 #[derive(Subcommand, Debug)]

@@ -32,6 +32,7 @@ fn main() {
         Some(command) => skyrender::cli::run(command).map_err(|e| e.to_string()),
         None => skyrender::app::run_app(
             cli.preset.as_deref(),
+            cli.scene.as_deref(),
             cli.screenshot.as_deref(),
             cli.screenshot_after,
         ),

@@ -370,22 +370,23 @@ fn showing_the_controls_leaves_the_scene_alone() {
 
 #[test]
 fn run_app_explains_itself_without_a_display() {
-    let err = skyrender::app::run_app(Some("noon"), None, 5.0).unwrap_err();
+    let err = skyrender::app::run_app(Some("noon"), None, None, 5.0).unwrap_err();
     assert!(err.contains("midday"), "{err}");
     let no_display = ["DISPLAY", "WAYLAND_DISPLAY"]
         .iter()
         .all(|v| std::env::var_os(v).is_none_or(|s| s.is_empty()));
     if no_display {
-        let err = skyrender::app::run_app(None, None, 5.0).unwrap_err();
+        let err = skyrender::app::run_app(None, None, None, 5.0).unwrap_err();
         assert_eq!(err, skyrender::app::NO_DISPLAY_MESSAGE);
         assert!(!err.contains('\n') && err.contains("skyrender render"));
     }
 }
 
 /// The whole window, rendered by wgpu (lavapipe where there is no GPU):
-/// every control group with its units. The sky image (whose noise changes
-/// with any change to the renderer) and the status bar (timings) are masked;
-/// the exposure is fixed so no value on screen depends on the render.
+/// every control group with its units (Display, closed at first, opened).
+/// The sky image (whose noise changes with any change to the renderer) and
+/// the status bar (timings) are masked; the exposure is fixed so no value on
+/// screen depends on the render.
 #[test]
 fn window_snapshot() {
     let mut app = tiny_app("sunset");
@@ -398,6 +399,7 @@ fn window_snapshot() {
         app.frame()
             .is_some_and(|f| f.finished && f.epoch == app.service_epoch())
     });
+    harness.get_by_label("Display").click_accesskit();
     harness.run_steps(3);
     let view = harness.get_by_label("Sky view").rect();
     harness.mask(view);
@@ -407,4 +409,65 @@ fn window_snapshot() {
         (status.top() - 4.0)..=1000.0,
     ));
     harness.snapshot("app_window");
+}
+
+/// The export and save buttons are in view at the window's default size,
+/// without scrolling, even with the camera mode that has the most controls.
+#[test]
+fn export_buttons_are_in_view_at_the_default_window_size() {
+    let [width, height] = skyrender::app::WINDOW_SIZE;
+    for kind in [CameraKind::Equirect, CameraKind::Perspective] {
+        let mut app = tiny_app("midday");
+        app.state_mut().set_camera_kind(kind);
+        let mut harness = Harness::builder()
+            .with_size(egui::vec2(width, height))
+            .build_ui_state(|ui, app: &mut SkyApp| app.show(ui), app);
+        wait_for_current_frame(&mut harness);
+        harness.run_steps(2);
+        // The status bar holds the preview size; the side panel ends above it.
+        let (w, h) = harness.state().state().preview_size();
+        let status_top = harness.get_by_label(&format!("{w}×{h} px")).rect().top();
+        let heading = harness.get_by_label("skyrender").rect();
+        for label in ["Export HDR panorama…", "Save view as PNG/EXR…"] {
+            let rect = harness.get_by_label(label).rect();
+            assert!(
+                rect.top() >= heading.bottom()
+                    && rect.bottom() <= status_top
+                    && rect.right() <= width,
+                "{kind:?}: '{label}' at {rect:?}, panel from {} to {status_top}",
+                heading.bottom()
+            );
+        }
+        if kind == CameraKind::Equirect {
+            // The default view shows every open section whole, the settings
+            // scrolling above the pinned Export section.
+            let pause = harness.get_by_label("Pause").rect();
+            let export = harness.get_by_label("Export").rect();
+            assert!(pause.bottom() <= export.top(), "{pause:?} under {export:?}");
+        }
+    }
+}
+
+/// The status bar's time counts from the scene change, the draft included,
+/// and stops with the last pass (the service's own clock starts again at
+/// the full-size render).
+#[test]
+fn render_time_counts_from_the_change_and_stops_when_done() {
+    let mut app = tiny_app("midday");
+    app.state_mut().set_preview_scale(1.0);
+    let mut harness = harness(app);
+    step_until(&mut harness, "the finished frame", |app| {
+        app.frame()
+            .is_some_and(|f| f.finished && f.epoch == app.service_epoch())
+    });
+    harness.run_steps(2);
+    let app = harness.state();
+    let time = app.render_time();
+    let frame = app.frame().unwrap();
+    assert!(time >= frame.elapsed, "{time:?} < {:?}", frame.elapsed);
+    let shown = format!("{:.1} s", time.as_secs_f64());
+    let _ = harness.get_by_label(&shown);
+    std::thread::sleep(Duration::from_millis(200));
+    harness.run_steps(2);
+    assert_eq!(harness.state().render_time(), time, "the clock stopped");
 }

@@ -505,3 +505,133 @@ fn switching_a_fisheye_scene_to_perspective_takes_the_perspective_default() {
     let scene_text = exr_text(&image, "skyrender:scene").unwrap();
     assert!(scene_text.contains("fov_deg = 90.0"), "{scene_text}");
 }
+
+/// The preview app with `args` and `display` as `DISPLAY` (none: unset).
+fn skyrender_app(args: &[&str], display: Option<&str>) -> Output {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_skyrender"));
+    command.args(args).env_remove("WAYLAND_DISPLAY");
+    match display {
+        Some(display) => command.env("DISPLAY", display),
+        None => command.env_remove("DISPLAY"),
+    };
+    command.output().expect("run skyrender")
+}
+
+/// A failed start of the app: exit status 2 and one `skyrender: error:` line.
+fn app_error(out: &Output) -> String {
+    let err = stderr(out);
+    assert_eq!(out.status.code(), Some(2), "{:?}: {err}", out.status);
+    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
+    assert!(err.starts_with("skyrender: error: "), "{err}");
+    err
+}
+
+/// No X server listens on this display.
+const MISSING_DISPLAY: &str = ":12345";
+
+#[test]
+fn the_app_checks_its_scene_file_before_any_window_opens() {
+    let dir = tempfile::tempdir().unwrap();
+    let bad = dir.path().join("bad.toml");
+    std::fs::write(&bad, "[sun]\nelevation_deg = 95.0\n").unwrap();
+    let bad = bad.to_str().unwrap();
+    let out = dir.path().join("x.exr");
+    let render = skyrender(&["render", "--scene", bad, "-o", out.to_str().unwrap()]);
+    let render_err = stderr(&render);
+    assert!(render_err.contains("sun elevation"), "{render_err}");
+    // The message `skyrender render --scene` gives, with no display and with
+    // one that cannot be opened: the file is read before a window is tried.
+    for display in [None, Some(MISSING_DISPLAY)] {
+        let err = app_error(&skyrender_app(&["--scene", bad], display));
+        assert_eq!(err, render_err, "DISPLAY={display:?}");
+    }
+    let missing = dir.path().join("missing.toml");
+    let err = app_error(&skyrender_app(
+        &["--scene", missing.to_str().unwrap()],
+        Some(MISSING_DISPLAY),
+    ));
+    assert!(
+        err.contains("cannot read") && err.contains("missing.toml"),
+        "{err}"
+    );
+    let garbled = dir.path().join("garbled.toml");
+    std::fs::write(&garbled, "[sun\n").unwrap();
+    let err = app_error(&skyrender_app(
+        &["--scene", garbled.to_str().unwrap()],
+        None,
+    ));
+    assert!(err.contains("line 1"), "{err}");
+
+    let err = app_error(&skyrender_app(
+        &["--scene", bad, "--preset", "sunset"],
+        Some(MISSING_DISPLAY),
+    ));
+    assert!(
+        err.contains("--preset") && err.contains("--scene") && err.contains("cannot be used with"),
+        "{err}"
+    );
+}
+
+#[test]
+fn a_display_that_cannot_be_opened_gets_a_clean_one_line_error() {
+    let out = skyrender_app(&["--preset", "sunset"], Some(MISSING_DISPLAY));
+    let err = app_error(&out);
+    assert!(
+        err.contains("cannot open the preview window on display ':12345': "),
+        "{err}"
+    );
+    assert!(err.contains("skyrender render"), "{err}");
+    // The windowing library's text can carry its source location.
+    for leak in [".cargo/registry", ".rs:", "src/"] {
+        assert!(!err.contains(leak), "'{leak}' in {err}");
+    }
+}
+
+/// A scene file in the app, on the display the tests run under (CI starts
+/// Xvfb); `--screenshot-after 0` takes the first frame on screen, before the
+/// full-size render has shown one.
+#[test]
+fn the_app_opens_a_scene_file_and_takes_a_screenshot() {
+    let Some(display) = std::env::var("DISPLAY").ok().filter(|d| !d.is_empty()) else {
+        eprintln!("skipped: no DISPLAY for the app's window");
+        return;
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("fisheye.toml");
+    std::fs::write(
+        &scene,
+        "[sun]\nelevation_deg = 20.0\n[camera]\nkind = \"fisheye\"\n",
+    )
+    .unwrap();
+    let shot = dir.path().join("shot.png");
+    let out = skyrender_app(
+        &[
+            "--scene",
+            scene.to_str().unwrap(),
+            "--screenshot",
+            shot.to_str().unwrap(),
+            "--screenshot-after",
+            "0",
+        ],
+        Some(&display),
+    );
+    let err = stderr(&out);
+    assert!(out.status.success(), "{:?}: {err}", out.status);
+    assert!(!err.contains("NaN"), "{err}");
+    let report = err
+        .lines()
+        .find(|l| l.starts_with("skyrender: screenshot at "))
+        .unwrap_or_else(|| panic!("no screenshot line: {err}"));
+    // The scene file's fisheye: a square image, not the default panorama.
+    let size = report
+        .split(" at ")
+        .nth(2)
+        .and_then(|s| s.split([';', ' ']).next())
+        .unwrap_or_else(|| panic!("no size in: {report}"));
+    let (w, h) = size.split_once('x').unwrap();
+    assert_eq!(w, h, "{report}");
+    // The window's size in pixels depends on the display's scale (and a
+    // window manager's say); the file only has to be a picture of it.
+    let png = image::open(&shot).unwrap();
+    assert!(png.width() > 0 && png.height() > 0);
+}

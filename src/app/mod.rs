@@ -17,4 +17,4 @@ pub mod ui;
 pub use state::{
     AppState, DisplaySettings, ExportSettings, ExportStatus, RenderSettings, ToneCurve,
 };
-pub use ui::{run_app, LatencyStats, SkyApp, NO_DISPLAY_MESSAGE};
+pub use ui::{run_app, LatencyStats, SkyApp, NO_DISPLAY_MESSAGE, WINDOW_SIZE};

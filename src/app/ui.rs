@@ -115,6 +115,57 @@ impl LatencyStats {
     }
 }
 
+/// Render time of the image on screen: wall time since the latest scene
+/// change, draft included, pauses not counted, stopped when the target is
+/// reached (or the render failed). The service's own `Frame::elapsed` starts
+/// again at the full-size render after a draft and counts pauses, so it
+/// understates a fresh render and overstates a paused one.
+#[derive(Clone, Copy, Debug, Default)]
+struct RenderClock {
+    /// Time counted before `running_since`.
+    banked: Duration,
+    /// Counting since then; `None` while paused or stopped.
+    running_since: Option<Instant>,
+    /// The render is over; only a scene change starts the clock again.
+    stopped: bool,
+}
+
+impl RenderClock {
+    /// A scene change at `now`: count from zero (from the resume if paused).
+    fn restart(&mut self, now: Instant, paused: bool) {
+        *self = Self {
+            banked: Duration::ZERO,
+            running_since: (!paused).then_some(now),
+            stopped: false,
+        };
+    }
+
+    fn pause(&mut self, now: Instant) {
+        if let Some(since) = self.running_since.take() {
+            self.banked += now.saturating_duration_since(since);
+        }
+    }
+
+    fn resume(&mut self, now: Instant) {
+        if !self.stopped && self.running_since.is_none() {
+            self.running_since = Some(now);
+        }
+    }
+
+    /// The render finished (or failed) at `now`.
+    fn stop(&mut self, now: Instant) {
+        self.pause(now);
+        self.stopped = true;
+    }
+
+    fn read(&self, now: Instant) -> Duration {
+        self.banked
+            + self
+                .running_since
+                .map_or(Duration::ZERO, |since| now.saturating_duration_since(since))
+    }
+}
+
 /// `--screenshot`: save the window after a delay and close it.
 struct ScreenshotPlan {
     path: PathBuf,
@@ -141,6 +192,13 @@ pub struct SkyApp {
     paths_per_second: f64,
     latency: LatencyStats,
     full_latency: LatencyStats,
+    clock: RenderClock,
+    /// The latest full-size frame's epoch, spp and elapsed time, to time
+    /// the next pass against; `None` after a pause or resume, whose pass
+    /// would include the wait.
+    pass_start: Option<(u64, u32, Duration)>,
+    /// How long the latest full-size sample pass took.
+    pass_time: Option<Duration>,
     applied_paused: bool,
     /// The epoch whose render error was last reported (each is shown once).
     reported_error_epoch: u64,
@@ -183,6 +241,9 @@ impl SkyApp {
             paths_per_second: INITIAL_PATHS_PER_SECOND,
             latency: LatencyStats::default(),
             full_latency: LatencyStats::default(),
+            clock: RenderClock::default(),
+            pass_start: None,
+            pass_time: None,
             applied_paused: false,
             reported_error_epoch: 0,
             frame: None,
@@ -246,6 +307,12 @@ impl SkyApp {
     /// Time from each scene change to its first full-size frame on screen.
     pub fn full_latency(&self) -> LatencyStats {
         self.full_latency
+    }
+
+    /// Render time of the image on screen: since the latest scene change,
+    /// draft included, pauses not counted, up to the last pass.
+    pub fn render_time(&self) -> Duration {
+        self.clock.read(Instant::now())
     }
 
     /// An export, save, load or dialog is still running.
@@ -453,6 +520,12 @@ impl SkyApp {
         if paused != self.applied_paused {
             self.service.set_paused(paused);
             self.applied_paused = paused;
+            self.pass_start = None;
+            if paused {
+                self.clock.pause(now);
+            } else {
+                self.clock.resume(now);
+            }
         }
         let waiting = self
             .pending_since
@@ -465,6 +538,7 @@ impl SkyApp {
             if let Some(error) = self.service.error() {
                 self.state.last_error = Some(error);
                 self.reported_error_epoch = self.started_epoch;
+                self.clock.stop(now);
             }
         }
         if let Some(frame) = self.service.latest() {
@@ -527,6 +601,9 @@ impl SkyApp {
         self.started_scene = scene;
         self.pending_since = Some(now);
         self.full_pending_since = Some(now);
+        self.clock.restart(now, self.state.render().paused);
+        self.pass_start = None;
+        self.pass_time = None;
     }
 
     /// Show a newly published frame of the current epoch; after a draft,
@@ -539,6 +616,16 @@ impl SkyApp {
         if !is_draft {
             if let Some(since) = self.full_pending_since.take() {
                 self.full_latency.record(now.duration_since(since));
+            }
+            if let Some((epoch, spp, elapsed)) = self.pass_start {
+                if epoch == frame.epoch && frame.spp > spp {
+                    self.pass_time =
+                        Some(frame.elapsed.saturating_sub(elapsed) / (frame.spp - spp));
+                }
+            }
+            self.pass_start = Some((frame.epoch, frame.spp, frame.elapsed));
+            if frame.finished {
+                self.clock.stop(now);
             }
         }
         if frame.paths_per_second().is_finite() && frame.paths_per_second() > 0.0 {
@@ -606,16 +693,16 @@ impl SkyApp {
         let shared = Arc::clone(&plan.result);
         let tx = self.tasks_tx.clone();
         let wake = self.wake();
-        let ms = |l: Option<Duration>| l.map_or(f64::NAN, |d| d.as_secs_f64() * 1e3);
         eprintln!(
-            "skyrender: screenshot at {:.1} s: {} spp at {}x{}; first frame {:.0} ms, \
-             first full-size frame {:.0} ms after start",
-            elapsed.as_secs_f64(),
-            self.frame.as_ref().map_or(0, |f| f.spp),
-            self.frame_scene.render.width,
-            self.frame_scene.render.height,
-            ms(self.latency.last),
-            ms(self.full_latency.last),
+            "skyrender: {}",
+            screenshot_report(
+                elapsed,
+                self.frame.as_deref(),
+                self.frame_is_draft,
+                &self.frame_scene,
+                self.latency.last,
+                self.full_latency.last,
+            )
         );
         self.tasks_running += 1;
         ctx.request_screenshot(move |image| {
@@ -658,6 +745,12 @@ impl SkyApp {
             .resizable(true)
             .default_size(300.0)
             .show(ui, |ui| {
+                // The export and save buttons are where a user ends up:
+                // pinned under the settings, they stay in reach however many
+                // sections are open, and the settings scroll above them.
+                egui::Panel::bottom("export")
+                    .frame(egui::Frame::NONE.inner_margin(egui::Margin::symmetric(0, 4)))
+                    .show(ui, |ui| self.export_group(ui));
                 egui::ScrollArea::vertical().show(ui, |ui| self.controls(ui));
             });
         egui::CentralPanel::default().show(ui, |ui| self.view(ui));
@@ -692,8 +785,21 @@ impl SkyApp {
                         f.paths_per_second() / 1e6
                     ))
                     .on_hover_text("Camera paths traced per second");
-                    ui.label(format!("{:.1} s", f.elapsed.as_secs_f64()))
-                        .on_hover_text("Time since the image started accumulating");
+                    ui.label(format!("{:.1} s", self.render_time().as_secs_f64()))
+                        .on_hover_text(
+                            "Render time since the latest change (draft included, \
+                             pauses not counted)",
+                        );
+                    if let Some(pass) = self.pass_time {
+                        let seconds = pass.as_secs_f64();
+                        let text = if seconds < 1.0 {
+                            format!("{:.0} ms/pass", seconds * 1e3)
+                        } else {
+                            format!("{seconds:.1} s/pass")
+                        };
+                        ui.label(text)
+                            .on_hover_text("How long the latest sample pass took");
+                    }
                     ui.label(format!("{} discarded", f.discarded))
                         .on_hover_text("Samples dropped as non-finite or negative");
                 }
@@ -740,7 +846,6 @@ impl SkyApp {
         self.camera_group(ui);
         self.display_group(ui);
         self.render_group(ui);
-        self.export_group(ui);
     }
 
     fn presets_group(&mut self, ui: &mut egui::Ui) {
@@ -1010,8 +1115,11 @@ impl SkyApp {
     }
 
     fn display_group(&mut self, ui: &mut egui::Ui) {
+        // Closed at first: auto exposure and the default tone curve suit
+        // most scenes, and the settings above it then fit the default
+        // window without scrolling.
         egui::CollapsingHeader::new("Display")
-            .default_open(true)
+            .default_open(false)
             .show(ui, |ui| {
                 let display = &mut self.state.display;
                 ui.checkbox(&mut display.auto_exposure, "Auto exposure")
@@ -1283,16 +1391,108 @@ fn slider(
     (response.changed() && v != value).then_some(v)
 }
 
+/// The line `--screenshot` prints when it takes the screenshot: what is on
+/// screen and how long the first frames took. A frame not shown yet (a
+/// screenshot taken before the first full-size pass, e.g. with
+/// `--screenshot-after 0`) is said so in words.
+fn screenshot_report(
+    elapsed: Duration,
+    frame: Option<&Frame>,
+    draft: bool,
+    scene: &Scene,
+    first: Option<Duration>,
+    full: Option<Duration>,
+) -> String {
+    let ms = |d: Duration| format!("{:.0} ms", d.as_secs_f64() * 1e3);
+    let shown = match frame {
+        Some(f) => format!(
+            "{} spp at {}x{}{}",
+            f.spp,
+            scene.render.width,
+            scene.render.height,
+            if draft { " (a draft)" } else { "" }
+        ),
+        None => "no frame on screen".to_owned(),
+    };
+    let latency = match (first, full) {
+        (Some(first), Some(full)) => format!(
+            "first frame {}, first full-size frame {} after start",
+            ms(first),
+            ms(full)
+        ),
+        (Some(first), None) => {
+            format!(
+                "first frame {} after start, no full-size frame yet",
+                ms(first)
+            )
+        }
+        (None, _) => "no frame yet".to_owned(),
+    };
+    format!(
+        "screenshot at {:.1} s: {shown}; {latency}",
+        elapsed.as_secs_f64()
+    )
+}
+
 impl eframe::App for SkyApp {
     fn ui(&mut self, ui: &mut egui::Ui, _frame: &mut eframe::Frame) {
         self.show(ui);
     }
 }
 
+/// What to do without a window, ending each message about the display.
+const HEADLESS_HINT: &str =
+    "on a headless machine use `skyrender render --preset midday -o sky.exr`";
+
 /// The line printed when there is no display to open a window on.
 pub const NO_DISPLAY_MESSAGE: &str =
     "no display found: the preview app needs a window; on a headless machine use \
      `skyrender render --preset midday -o sky.exr`";
+
+/// The preview window's default size, points.
+pub const WINDOW_SIZE: [f32; 2] = [1240.0, 760.0];
+
+/// The display the window goes to, as the environment names it.
+fn display_name() -> String {
+    ["DISPLAY", "WAYLAND_DISPLAY"]
+        .iter()
+        .filter_map(std::env::var_os)
+        .find(|s| !s.is_empty())
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_default()
+}
+
+/// One short line from the windowing library's error text. winit's OS
+/// errors read "os error at <its source file>:<line>: <reason>" (behind
+/// eframe's "winit EventLoopError: "): a path into the dependency's source
+/// means nothing to a user, so only the reason after it is kept.
+fn window_error_reason(text: &str) -> String {
+    let line = text.lines().next().unwrap_or_default().trim();
+    let reason = match line.rfind(".rs:") {
+        Some(i) => line[i + ".rs:".len()..]
+            .trim_start_matches(|c: char| c.is_ascii_digit() || c == ':')
+            .trim(),
+        None => line,
+    };
+    let mut chars = reason.chars();
+    match (chars.next(), chars.next()) {
+        // "Failed to open…" reads as a clause after a colon; "X11…" keeps its case.
+        (Some(first), Some(second)) if first.is_uppercase() && second.is_lowercase() => {
+            first.to_lowercase().chain(reason.chars().skip(1)).collect()
+        }
+        (Some(_), _) => reason.to_owned(),
+        (None, _) => "unknown error".to_owned(),
+    }
+}
+
+/// The error for a window that could not be opened.
+fn window_error(text: &str) -> String {
+    format!(
+        "cannot open the preview window on display '{}': {}; {HEADLESS_HINT}",
+        display_name(),
+        window_error_reason(text)
+    )
+}
 
 /// Whether a window can be opened (on Linux and the BSDs: `DISPLAY` or
 /// `WAYLAND_DISPLAY` is set).
@@ -1306,15 +1506,27 @@ fn has_display() -> bool {
     }
 }
 
-/// Open the preview window (wgpu renderer), starting from `preset` (default
-/// `midday`). With `screenshot`, save a PNG of the window after
-/// `screenshot_after_s` seconds of refining and exit.
+/// Open the preview window (wgpu renderer), starting from `preset` or the
+/// scene file `scene_file` (default: the `midday` preset). With
+/// `screenshot`, save a PNG of the window after `screenshot_after_s` seconds
+/// of refining and exit. Every argument is checked before a window opens, so
+/// a mistake fails fast with one line, also on a machine without a display.
 pub fn run_app(
     preset: Option<&str>,
+    scene_file: Option<&Path>,
     screenshot: Option<&Path>,
     screenshot_after_s: f64,
 ) -> Result<(), String> {
-    let scene = Scene::preset(preset.unwrap_or("midday")).map_err(|e| e.to_string())?;
+    // `Scene::load` validates, as `skyrender render --scene` does: the same
+    // file gives the same message in both.
+    let scene = match (preset, scene_file) {
+        (Some(_), Some(_)) => {
+            return Err("a preset and a scene file cannot be used together".into())
+        }
+        (None, Some(path)) => Scene::load(path),
+        (preset, None) => Scene::preset(preset.unwrap_or("midday")),
+    }
+    .map_err(|e| e.to_string())?;
     if !(screenshot_after_s.is_finite() && (0.0..=86_400.0).contains(&screenshot_after_s)) {
         return Err(format!(
             "invalid screenshot delay: {screenshot_after_s} is outside the valid range 0 to 86400 s"
@@ -1339,7 +1551,7 @@ pub fn run_app(
     let options = eframe::NativeOptions {
         viewport: egui::ViewportBuilder::default()
             .with_title("skyrender")
-            .with_inner_size([1240.0, 760.0])
+            .with_inner_size(WINDOW_SIZE)
             .with_min_inner_size([640.0, 400.0]),
         renderer: eframe::Renderer::Wgpu,
         ..Default::default()
@@ -1362,13 +1574,7 @@ pub fn run_app(
             Ok(Box::new(app))
         }),
     )
-    .map_err(|e| {
-        let text = e.to_string();
-        format!(
-            "cannot open the preview window: {}",
-            text.lines().next().unwrap_or_default()
-        )
-    })?;
+    .map_err(|e| window_error(&e.to_string()))?;
     if screenshot.is_some() {
         let outcome = result
             .lock()
@@ -1378,4 +1584,98 @@ pub fn run_app(
             .unwrap_or_else(|| Err("the window closed before the screenshot was taken".into()));
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MS: Duration = Duration::from_millis(1);
+
+    #[test]
+    fn render_clock_counts_from_the_change_without_pauses_and_stops_when_done() {
+        let t0 = Instant::now();
+        let mut clock = RenderClock::default();
+        assert_eq!(clock.read(t0), Duration::ZERO);
+        clock.restart(t0, false);
+        assert_eq!(clock.read(t0 + 300 * MS), 300 * MS);
+        clock.pause(t0 + 500 * MS);
+        assert_eq!(clock.read(t0 + 9000 * MS), 500 * MS);
+        clock.resume(t0 + 10_000 * MS);
+        assert_eq!(clock.read(t0 + 10_250 * MS), 750 * MS);
+        clock.stop(t0 + 11_000 * MS);
+        assert_eq!(clock.read(t0 + 60_000 * MS), 1500 * MS);
+        // Pausing and resuming a finished render leaves it finished.
+        clock.pause(t0 + 61_000 * MS);
+        clock.resume(t0 + 62_000 * MS);
+        assert_eq!(clock.read(t0 + 63_000 * MS), 1500 * MS);
+        // A change made while paused starts counting at the resume.
+        clock.restart(t0 + 70_000 * MS, true);
+        assert_eq!(clock.read(t0 + 71_000 * MS), Duration::ZERO);
+        clock.resume(t0 + 72_000 * MS);
+        assert_eq!(clock.read(t0 + 72_100 * MS), 100 * MS);
+    }
+
+    #[test]
+    fn screenshot_report_never_prints_nan() {
+        let scene = Scene::preset("midday").unwrap();
+        let frame = Frame {
+            epoch: 1,
+            image: crate::output::RgbImage {
+                width: 4,
+                height: 2,
+                pixels: vec![[0.0; 3]; 8],
+            },
+            spp: 3,
+            paths: 24,
+            elapsed: 20 * MS,
+            discarded: 0,
+            finished: false,
+        };
+        let at = 1500 * MS;
+        let both = screenshot_report(
+            at,
+            Some(&frame),
+            false,
+            &scene,
+            Some(40 * MS),
+            Some(90 * MS),
+        );
+        assert!(both.ends_with("first frame 40 ms, first full-size frame 90 ms after start"));
+        assert!(both.starts_with("screenshot at 1.5 s: 3 spp at "), "{both}");
+        let draft = screenshot_report(at, Some(&frame), true, &scene, Some(40 * MS), None);
+        assert!(
+            draft.ends_with("(a draft); first frame 40 ms after start, no full-size frame yet"),
+            "{draft}"
+        );
+        let none = screenshot_report(Duration::ZERO, None, false, &scene, None, None);
+        assert_eq!(
+            none,
+            "screenshot at 0.0 s: no frame on screen; no frame yet"
+        );
+        for line in [both, draft, none] {
+            assert!(!line.to_lowercase().contains("nan"), "{line}");
+        }
+    }
+
+    #[test]
+    fn window_errors_lose_the_dependency_source_path() {
+        let winit = "winit EventLoopError: os error at /home/u/.cargo/registry/src/\
+                     index.crates.io-1949cf8c6b5b557f/winit-0.30.13/src/platform_impl/\
+                     linux/mod.rs:767:30: Failed to open connection to X server";
+        assert_eq!(
+            window_error_reason(winit),
+            "failed to open connection to X server"
+        );
+        assert_eq!(
+            window_error_reason("WGPU error: no suitable adapter\nmore detail"),
+            "WGPU error: no suitable adapter"
+        );
+        assert_eq!(window_error_reason("X11 said no"), "X11 said no");
+        assert_eq!(window_error_reason(""), "unknown error");
+        let message = window_error(winit);
+        assert!(message.starts_with("cannot open the preview window on display '"));
+        assert!(message.ends_with(HEADLESS_HINT), "{message}");
+        assert!(NO_DISPLAY_MESSAGE.ends_with(HEADLESS_HINT));
+    }
 }
