@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand};
 use crate::atmosphere::Atmosphere;
 use crate::output::{self, OutputFormat};
 use crate::physics::standard_atmosphere;
-use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
+use crate::render::{OutOfMemory, Renderer};
 use crate::scene::{show_number, CameraKind, Scene, SceneError, MAX_ALTITUDE_M};
 
 /// Writes `text` to standard output. A reader that closed the pipe early
@@ -442,6 +442,8 @@ pub enum CliError {
     Output(#[from] output::OutputError),
     #[error(transparent)]
     Memory(#[from] OutOfMemory),
+    #[error(transparent)]
+    Export(#[from] crate::export::ExportError),
     #[error("{0}")]
     Other(String),
 }
@@ -450,61 +452,6 @@ pub enum CliError {
 fn check_output_path(path: &Path) -> Result<(), CliError> {
     OutputFormat::from_path(path)?;
     crate::output::check_writable(path).map_err(|e| CliError::Other(format!("invalid output: {e}")))
-}
-
-/// The header metadata written into EXR files: `skyrender:spp` is the passes
-/// rendered (the least samples a pixel has), `skyrender:samples_per_pixel`
-/// the camera paths per pixel on average (more under adaptive sampling),
-/// `skyrender:mirror_pairs` whether pixels were read with their mirror
-/// images in the sun's vertical plane (`columns` or `rows`: the image's
-/// mirrored axis; `none`), which doubles the samples behind each pixel.
-pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<(String, String)> {
-    let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
-    vec![
-        ("skyrender:version".into(), env!("CARGO_PKG_VERSION").into()),
-        ("skyrender:scene".into(), scene.to_toml()),
-        ("skyrender:spp".into(), spp.to_string()),
-        (
-            "skyrender:samples_per_pixel".into(),
-            format!("{:.2}", paths as f64 / pixels),
-        ),
-        ("skyrender:discarded_samples".into(), discarded.to_string()),
-        (
-            "skyrender:mirror_pairs".into(),
-            match crate::render::mirror_pairs(scene).map(|m| m.axis) {
-                Some(MirrorAxis::Columns) => "columns",
-                Some(MirrorAxis::Rows) => "rows",
-                None => "none",
-            }
-            .into(),
-        ),
-        (
-            "skyrender:units".into(),
-            "linear Rec.709, Y = luminance in cd/m^2".into(),
-        ),
-    ]
-}
-
-/// Render `scene` and write it to `path` (EXR or PNG), atomically.
-pub fn render_to_file(
-    scene: &Scene,
-    path: &Path,
-    cancel: &AtomicBool,
-    mut progress: impl FnMut(u32, u32),
-) -> Result<(u32, u64, u64), CliError> {
-    let renderer = Renderer::new(scene)?;
-    let total = scene.render.spp;
-    let (film, paths) =
-        service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
-            .ok_or_else(|| CliError::Other("render cancelled".into()))?;
-    let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
-    output::write_image(
-        path,
-        &image,
-        &exr_metadata(scene, total, paths, film.discarded),
-        scene.render.exposure_ev.map(|v| v as f32),
-    )?;
-    Ok((total, paths, film.discarded))
 }
 
 fn parse_wavelengths(single: Option<f64>, range: Option<&str>) -> Result<Vec<f64>, SceneError> {
@@ -608,7 +555,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let start = Instant::now();
             let cancel = AtomicBool::new(false);
             let (spp, paths, discarded) = pool.install(|| {
-                render_to_file(&scene, &output, &cancel, |pass, _| {
+                crate::export::render_to_file(&scene, &output, &cancel, |pass, _| {
                     bar.set_position(u64::from(pass));
                 })
             })?;

@@ -30,6 +30,7 @@ pub mod atmosphere;
 pub mod bench;
 pub mod cli;
 pub mod data;
+pub mod export;
 pub mod output;
 pub mod physics;
 pub mod render;

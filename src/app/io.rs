@@ -36,7 +36,7 @@ pub fn check_export_path(path: &Path) -> Result<(), String> {
 
 /// Render `scene` (already set to an equirectangular camera, the export size
 /// and spp; see [`super::AppState::export_scene`]) into the EXR at `path`,
-/// exactly as `skyrender render` does ([`crate::cli::render_to_file`]).
+/// exactly as `skyrender render` does ([`crate::export::render_to_file`]).
 /// Blocks; `progress` receives the completed passes, `cancel` stops between
 /// rows. Returns the wall-clock time.
 pub fn export_panorama(
@@ -47,7 +47,7 @@ pub fn export_panorama(
 ) -> Result<Duration, String> {
     let start = Instant::now();
     check_export_path(path)?;
-    crate::cli::render_to_file(scene, path, cancel, |pass, _| {
+    crate::export::render_to_file(scene, path, cancel, |pass, _| {
         progress.store(pass, Ordering::Relaxed);
     })
     .map_err(|e| e.to_string())?;
@@ -156,7 +156,8 @@ pub fn save_view(
 ) -> Result<(), String> {
     match OutputFormat::from_path(path).map_err(|e| e.to_string())? {
         OutputFormat::Exr => {
-            let metadata = crate::cli::exr_metadata(scene, frame.spp, frame.paths, frame.discarded);
+            let metadata =
+                crate::export::exr_metadata(scene, frame.spp, frame.paths, frame.discarded);
             output::write_image(path, &frame.image, &metadata, None).map_err(|e| e.to_string())
         }
         OutputFormat::Png => {

@@ -322,9 +322,7 @@ impl SolarSource {
         match self {
             Self::Unit => 1.0,
             // At 1 AU exactly the table's own value, bit for bit.
-            Self::Measured { scale: 1.0 } => {
-                sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm)
-            }
+            Self::Measured { scale: 1.0 } => sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm),
             Self::Measured { scale } => {
                 scale * sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm)
             }

@@ -1,0 +1,267 @@
+//! Rendering to files: one scene to one EXR or PNG, and a timelapse's
+//! frames. The one service behind `skyrender render` and the app's export.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+
+use chrono::{DateTime, Duration, FixedOffset, SecondsFormat};
+
+use crate::output;
+use crate::physics::solar_position;
+use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
+use crate::scene::{Scene, SceneError};
+
+/// Why a render to a file did not produce its file.
+#[derive(Debug, thiserror::Error)]
+pub enum ExportError {
+    /// The scene or a sequence setting is invalid.
+    #[error(transparent)]
+    Scene(#[from] SceneError),
+    /// Writing the file failed.
+    #[error(transparent)]
+    Output(#[from] output::OutputError),
+    /// The render's buffers do not fit in memory.
+    #[error(transparent)]
+    Memory(#[from] OutOfMemory),
+    /// The render was cancelled before its last pass.
+    #[error("render cancelled")]
+    Cancelled,
+}
+
+/// The header metadata written into EXR files: `skyrender:spp` is the passes
+/// rendered (the least samples a pixel has), `skyrender:samples_per_pixel`
+/// the camera paths per pixel on average (more under adaptive sampling),
+/// `skyrender:mirror_pairs` whether pixels were read with their mirror
+/// images in the sun's vertical plane (`columns` or `rows`: the image's
+/// mirrored axis; `none`), which doubles the samples behind each pixel.
+pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<(String, String)> {
+    let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
+    vec![
+        ("skyrender:version".into(), env!("CARGO_PKG_VERSION").into()),
+        ("skyrender:scene".into(), scene.to_toml()),
+        ("skyrender:spp".into(), spp.to_string()),
+        (
+            "skyrender:samples_per_pixel".into(),
+            format!("{:.2}", paths as f64 / pixels),
+        ),
+        ("skyrender:discarded_samples".into(), discarded.to_string()),
+        (
+            "skyrender:mirror_pairs".into(),
+            match crate::render::mirror_pairs(scene).map(|m| m.axis) {
+                Some(MirrorAxis::Columns) => "columns",
+                Some(MirrorAxis::Rows) => "rows",
+                None => "none",
+            }
+            .into(),
+        ),
+        (
+            "skyrender:units".into(),
+            "linear Rec.709, Y = luminance in cd/m^2".into(),
+        ),
+    ]
+}
+
+/// Render `scene` and write it to `path` (EXR or PNG), atomically.
+pub fn render_to_file(
+    scene: &Scene,
+    path: &Path,
+    cancel: &AtomicBool,
+    mut progress: impl FnMut(u32, u32),
+) -> Result<(u32, u64, u64), ExportError> {
+    let renderer = Renderer::new(scene)?;
+    let total = scene.render.spp;
+    let (film, paths) =
+        service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
+            .ok_or(ExportError::Cancelled)?;
+    let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
+    output::write_image(
+        path,
+        &image,
+        &exr_metadata(scene, total, paths, film.discarded),
+        scene.render.exposure_ev.map(|v| v as f32),
+    )?;
+    Ok((total, paths, film.discarded))
+}
+
+/// An output path with a run of `#` standing for the frame number, zero
+/// padded to the run's length (`sky_####.exr` → `sky_0007.exr`), as
+/// Blender and Nuke name frames.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct FramePattern {
+    before: String,
+    digits: usize,
+    after: String,
+}
+
+impl FramePattern {
+    /// The pattern in `path`, or `None` where its file name has no `#`.
+    /// Only the file name's last run of `#` counts.
+    pub fn parse(path: &Path) -> Option<Self> {
+        let text = path.to_str()?;
+        let name_start = text.rfind(std::path::is_separator).map_or(0, |i| i + 1);
+        let end = text[name_start..].rfind('#')? + name_start + 1;
+        let start = text[..end].trim_end_matches('#').len();
+        Some(Self {
+            before: text[..start].to_owned(),
+            digits: end - start,
+            after: text[end..].to_owned(),
+        })
+    }
+
+    /// The file of frame `frame`.
+    pub fn path_for(&self, frame: u32) -> PathBuf {
+        PathBuf::from(format!(
+            "{}{frame:0width$}{}",
+            self.before,
+            self.after,
+            width = self.digits
+        ))
+    }
+}
+
+/// Frames `first..=last` (1-based, inclusive, as `--frame-range 3..5`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameRange {
+    /// First frame.
+    pub first: u32,
+    /// Last frame, inclusive.
+    pub last: u32,
+}
+
+impl FrameRange {
+    /// Parses `A..B` (inclusive) or a single frame `A`, within `1..=frames`.
+    pub fn parse(text: &str, frames: u32) -> Result<Self, SceneError> {
+        let fail = |why: String| SceneError::new("frame range", format!("'{text}': {why}"));
+        let number = |s: &str| {
+            s.trim()
+                .parse::<u32>()
+                .map_err(|_| fail("expected FIRST..LAST, frame numbers from 1 (e.g. 1..24)".into()))
+        };
+        let (first, last) = match text.split_once("..") {
+            Some((a, b)) => (number(a)?, number(b)?),
+            None => (number(text)?, number(text)?),
+        };
+        if first == 0 || first > last {
+            return Err(fail(
+                "the range is empty or reversed (frames count from 1)".into(),
+            ));
+        }
+        if last > frames {
+            return Err(fail(format!("the sequence has {frames} frames")));
+        }
+        Ok(Self { first, last })
+    }
+}
+
+/// Most frames a timelapse may have (a day at one frame every 5 s).
+pub const MAX_FRAMES: u32 = 17_280;
+
+/// A timelapse: `frames` instants evenly spaced from `start` to `end`
+/// (both included), each a scene with its own Sun.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Timelapse {
+    start: DateTime<FixedOffset>,
+    end: DateTime<FixedOffset>,
+    frames: u32,
+}
+
+impl Timelapse {
+    /// From RFC 3339 times (`2013-05-27T05:00:00-04:00`) and a frame count.
+    pub fn new(start: &str, end: &str, frames: u32) -> Result<Self, SceneError> {
+        let parse = |name: &str, text: &str| {
+            solar_position::parse_date_time(text).map_err(|e| SceneError::new(name, e))
+        };
+        let start = parse("time start", start)?;
+        let end = parse("time end", end)?;
+        if !(1..=MAX_FRAMES).contains(&frames) {
+            return Err(SceneError::new(
+                "frames",
+                format!("{frames} is outside the valid range 1 to {MAX_FRAMES}"),
+            ));
+        }
+        if end < start {
+            return Err(SceneError::new(
+                "time end",
+                format!("{end} is before the start {start}"),
+            ));
+        }
+        if frames > 1 && end == start {
+            return Err(SceneError::new(
+                "time end",
+                "equals the start: several frames need a span of time",
+            ));
+        }
+        Ok(Self { start, end, frames })
+    }
+
+    /// Frames in the sequence.
+    pub fn frames(&self) -> u32 {
+        self.frames
+    }
+
+    /// The instant of frame `frame` (1-based), to the millisecond, in the
+    /// start's UTC offset.
+    pub fn time_of(&self, frame: u32) -> DateTime<FixedOffset> {
+        if self.frames == 1 {
+            return self.start;
+        }
+        let span_ms = (self.end - self.start).num_milliseconds();
+        let step = f64::from(frame - 1) / f64::from(self.frames - 1);
+        self.start + Duration::milliseconds((span_ms as f64 * step).round() as i64)
+    }
+
+    /// `base` at frame `frame`'s instant: its Sun placed for that time.
+    pub fn scene_for(&self, base: &Scene, frame: u32) -> Result<Scene, SceneError> {
+        let mut scene = base.clone();
+        scene.sun.date_time = Some(
+            self.time_of(frame)
+                .to_rfc3339_opts(SecondsFormat::AutoSi, false),
+        );
+        scene.place_sun()?;
+        scene.validate()?;
+        Ok(scene)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn frame_patterns_pad_the_number() {
+        let p = FramePattern::parse(Path::new("out/day_####.exr")).unwrap();
+        assert_eq!(p.path_for(7), PathBuf::from("out/day_0007.exr"));
+        assert_eq!(p.path_for(12345), PathBuf::from("out/day_12345.exr"));
+        let p = FramePattern::parse(Path::new("a#b/f#.png")).unwrap();
+        assert_eq!(p.path_for(3), PathBuf::from("a#b/f3.png"));
+        assert!(FramePattern::parse(Path::new("a#b/sky.exr")).is_none());
+    }
+
+    #[test]
+    fn frame_ranges_are_checked() {
+        assert_eq!(
+            FrameRange::parse("3..5", 24).unwrap(),
+            FrameRange { first: 3, last: 5 }
+        );
+        assert_eq!(
+            FrameRange::parse("7", 24).unwrap(),
+            FrameRange { first: 7, last: 7 }
+        );
+        for bad in ["5..3", "0..2", "1..25", "a..b", "", "1...3"] {
+            assert!(FrameRange::parse(bad, 24).is_err(), "{bad}");
+        }
+    }
+
+    #[test]
+    fn a_timelapse_spans_its_times_evenly() {
+        let t =
+            Timelapse::new("2013-05-27T00:00:00-04:00", "2013-05-27T23:00:00-04:00", 24).unwrap();
+        assert_eq!(t.time_of(1).to_rfc3339(), "2013-05-27T00:00:00-04:00");
+        assert_eq!(t.time_of(13).to_rfc3339(), "2013-05-27T12:00:00-04:00");
+        assert_eq!(t.time_of(24).to_rfc3339(), "2013-05-27T23:00:00-04:00");
+        assert!(Timelapse::new("2013-05-27T10:00:00Z", "2013-05-27T09:00:00Z", 3).is_err());
+        assert!(Timelapse::new("2013-05-27T10:00:00Z", "2013-05-27T10:00:00Z", 3).is_err());
+        assert!(Timelapse::new("noon", "2013-05-27T10:00:00Z", 3).is_err());
+        assert!(Timelapse::new("2013-05-27T10:00:00Z", "2013-05-27T11:00:00Z", 0).is_err());
+    }
+}
