@@ -485,13 +485,11 @@ impl Scene {
             // Mercury's perihelion (0.307 AU) to beyond Pluto's aphelion.
             check_range("sun distance (AU)", d, 0.3, 50.0)?;
         }
-        if self.sun.date_time.is_none()
-            && (self.sun.latitude_deg.is_some() || self.sun.longitude_deg.is_some())
-        {
-            return Err(SceneError::new(
-                "sun latitude/longitude",
-                "a place needs a date and time to place the Sun (date_time, --time)",
-            ));
+        if let Some(v) = self.sun.latitude_deg {
+            check_range("latitude (deg)", v, -90.0, 90.0)?;
+        }
+        if let Some(v) = self.sun.longitude_deg {
+            check_range("longitude (deg)", v, -180.0, 180.0)?;
         }
         self.sun_from_date()?;
         check_range(

@@ -194,7 +194,7 @@ fn export_writes_the_same_exr_as_the_cli() {
         ..Default::default()
     };
     let cli_path = dir.path().join("cli.exr");
-    skyrender::cli::render_to_file(
+    skyrender::export::render_to_file(
         &args.build().unwrap(),
         &cli_path,
         &AtomicBool::new(false),

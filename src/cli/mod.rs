@@ -1,11 +1,10 @@
 //! The `skyrender` command line: a thin shell over the library.
 
-use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::AtomicBool;
-use std::time::Instant;
 
 use clap::{Args, Parser, Subcommand};
+
+mod render;
 
 use crate::atmosphere::Atmosphere;
 use crate::output::{self, OutputFormat};
@@ -73,7 +72,10 @@ pub enum Command {
     Render {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output file, .exr or .png.
+        #[command(flatten)]
+        sequence: render::SequenceArgs,
+        /// Output file, .exr or .png; for a timelapse, a name with a run of
+        /// `#` for the frame number (sky_####.exr).
         #[arg(short, long, value_name = "OUT.exr|OUT.png")]
         output: PathBuf,
     },
@@ -404,6 +406,9 @@ impl SceneArgs {
         if self.aerosol_amount.is_some() && !scene.atmosphere.aerosols {
             notes.push("--aerosol-amount has no effect without aerosols (--no-aerosols, or `aerosols = false` in the scene)".into());
         }
+        if (self.lat.is_some() || self.lon.is_some()) && scene.sun.date_time.is_none() {
+            notes.push("--lat/--lon place the Sun only with a date and time (--time, or --time-start for a timelapse)".into());
+        }
         if self.ozone_du.is_some() && !scene.atmosphere.ozone {
             notes.push("--ozone-du has no effect without ozone (--no-ozone, or `ozone = false` in the scene)".into());
         }
@@ -535,58 +540,8 @@ pub fn run(command: Command) -> Result<(), CliError> {
         Command::Render {
             scene: args,
             output,
-        } => {
-            let scene = args.build()?;
-            check_output_path(&output)?;
-            let pool = args.thread_pool()?;
-            args.print_notes(&scene);
-            let bar = if std::io::stderr().is_terminal() {
-                let bar = indicatif::ProgressBar::new(u64::from(scene.render.spp));
-                bar.set_style(
-                    indicatif::ProgressStyle::with_template(
-                        "{elapsed_precise} [{bar:40}] {pos}/{len} spp, eta {eta}",
-                    )
-                    .expect("valid template"),
-                );
-                bar
-            } else {
-                indicatif::ProgressBar::hidden()
-            };
-            let start = Instant::now();
-            let cancel = AtomicBool::new(false);
-            let (spp, paths, discarded) = pool.install(|| {
-                crate::export::render_to_file(&scene, &output, &cancel, |pass, _| {
-                    bar.set_position(u64::from(pass));
-                })
-            })?;
-            bar.finish_and_clear();
-            let seconds = start.elapsed().as_secs_f64();
-            // Adaptive sampling gives noisy pixels more than one sample per
-            // pass: say how many paths a pixel got on average.
-            let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
-            let mean_spp = paths as f64 / pixels;
-            let mut notes = Vec::new();
-            if scene.render.adaptive_sampling && mean_spp > f64::from(spp) {
-                notes.push(format!("adaptive: {mean_spp:.1} per pixel on average"));
-            }
-            // Mirror pairs double the samples behind each pixel.
-            if crate::render::mirror_pairs(&scene).is_some() {
-                notes.push("read in mirror pairs".to_owned());
-            }
-            let adaptive = if notes.is_empty() {
-                String::new()
-            } else {
-                format!(" ({})", notes.join("; "))
-            };
-            outln!(
-                "{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M camera paths/s), {discarded} samples discarded -> {}",
-                scene.render.width,
-                scene.render.height,
-                paths as f64 / seconds / 1e6,
-                output.display()
-            );
-            Ok(())
-        }
+            sequence,
+        } => render::run(&args, &output, &sequence),
         Command::Radiance {
             scene: args,
             view_zenith,

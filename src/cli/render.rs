@@ -1,0 +1,201 @@
+//! `skyrender render`: one image, or a timelapse's frames.
+
+use std::io::IsTerminal;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::AtomicBool;
+use std::time::Instant;
+
+use clap::Args;
+
+use super::{check_output_path, emit, CliError, SceneArgs};
+use crate::export::{self, FramePattern, FrameRange, Timelapse};
+use crate::scene::{Scene, SceneError};
+
+/// A timelapse: frames evenly spaced in time, each with its own Sun.
+#[derive(Args, Debug, Default, Clone)]
+pub struct SequenceArgs {
+    /// Timelapse: the first frame's date and time (RFC 3339 with UTC
+    /// offset); needs --time-end, --frames, --lat and --lon [default: none,
+    /// one image].
+    #[arg(long, value_name = "DATE_TIME", conflicts_with = "time", requires_all = ["time_end", "frames"])]
+    pub time_start: Option<String>,
+    /// Timelapse: the last frame's date and time [default: none].
+    #[arg(long, value_name = "DATE_TIME", requires = "time_start")]
+    pub time_end: Option<String>,
+    /// Timelapse: the number of frames, 1 to 17280, first and last
+    /// included [default: none].
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "N",
+        requires = "time_start"
+    )]
+    pub frames: Option<i64>,
+    /// Timelapse: render only frames FIRST..LAST (1-based, inclusive; e.g.
+    /// one per cluster task) [default: every frame].
+    #[arg(long, value_name = "FIRST..LAST", requires = "time_start")]
+    pub frame_range: Option<String>,
+    /// Skip the frames (or the image) whose file already exists, so an
+    /// interrupted sequence goes on where it stopped.
+    #[arg(long)]
+    pub resume: bool,
+}
+
+/// One file to render: its scene, its path and its frame label.
+struct Job {
+    scene: Scene,
+    path: PathBuf,
+    label: String,
+}
+
+/// The files `render` writes, checked before any is rendered: an invalid
+/// frame, pattern or range stops the command with nothing written.
+fn jobs(base: &Scene, output: &Path, sequence: &SequenceArgs) -> Result<Vec<Job>, CliError> {
+    let Some(start) = &sequence.time_start else {
+        return Ok(vec![Job {
+            scene: base.clone(),
+            path: output.to_path_buf(),
+            label: String::new(),
+        }]);
+    };
+    let frames = sequence.frames.unwrap_or(0);
+    let frames = u32::try_from(frames).map_err(|_| {
+        SceneError::new(
+            "frames",
+            format!(
+                "{frames} is outside the valid range 1 to {}",
+                export::MAX_FRAMES
+            ),
+        )
+    })?;
+    let end = sequence.time_end.as_deref().unwrap_or(start);
+    let timelapse = Timelapse::new(start, end, frames)?;
+    let range = match &sequence.frame_range {
+        Some(text) => FrameRange::parse(text, frames)?,
+        None => FrameRange {
+            first: 1,
+            last: frames,
+        },
+    };
+    let pattern = FramePattern::parse(output);
+    if pattern.is_none() && range.first != range.last {
+        return Err(SceneError::new(
+            "output",
+            format!(
+                "'{}' has no run of # for the frame number, which a sequence of frames needs \
+                 (e.g. sky_####.exr)",
+                output.display()
+            ),
+        )
+        .into());
+    }
+    (range.first..=range.last)
+        .map(|frame| {
+            let scene = timelapse.scene_for(base, frame)?;
+            let path = pattern
+                .as_ref()
+                .map_or_else(|| output.to_path_buf(), |p| p.path_for(frame));
+            let label = format!(
+                "frame {frame}/{frames} ({}, sun {:.2}°) ",
+                scene.sun.date_time.as_deref().unwrap_or_default(),
+                scene.sun.elevation_deg
+            );
+            Ok(Job { scene, path, label })
+        })
+        .collect()
+}
+
+/// `skyrender render`.
+pub fn run(args: &SceneArgs, output: &Path, sequence: &SequenceArgs) -> Result<(), CliError> {
+    let base = args.build()?;
+    let mut jobs = jobs(&base, output, sequence)?;
+    for job in &jobs {
+        check_output_path(&job.path)?;
+    }
+    if sequence.resume {
+        let before = jobs.len();
+        jobs.retain(|job| !job.path.exists());
+        if before > jobs.len() {
+            eprintln!(
+                "skyrender: note: --resume: {} of {before} file(s) exist, skipped",
+                before - jobs.len()
+            );
+        }
+    }
+    let pool = args.thread_pool()?;
+    // A timelapse's frames have their dates (for the notes on --lat/--lon).
+    args.print_notes(jobs.first().map_or(&base, |job| &job.scene));
+    let spp = u64::from(base.render.spp);
+    let total = spp * jobs.len() as u64;
+    let bar = if std::io::stderr().is_terminal() && total > 0 {
+        let bar = indicatif::ProgressBar::new(total);
+        let unit = if jobs.len() > 1 {
+            "passes of all frames"
+        } else {
+            "spp"
+        };
+        bar.set_style(
+            indicatif::ProgressStyle::with_template(&format!(
+                "{{elapsed_precise}} [{{bar:40}}] {{pos}}/{{len}} {unit}, eta {{eta}}"
+            ))
+            .expect("valid template"),
+        );
+        bar
+    } else {
+        indicatif::ProgressBar::hidden()
+    };
+    let cancel = AtomicBool::new(false);
+    for (done, job) in jobs.iter().enumerate() {
+        let start = Instant::now();
+        let offset = done as u64 * spp;
+        let (spp, paths, discarded) = pool.install(|| {
+            export::render_to_file(&job.scene, &job.path, &cancel, |pass, _| {
+                bar.set_position(offset + u64::from(pass));
+            })
+        })?;
+        let seconds = start.elapsed().as_secs_f64();
+        bar.suspend(|| {
+            report(
+                &job.scene, &job.label, &job.path, spp, paths, discarded, seconds,
+            );
+        });
+    }
+    bar.finish_and_clear();
+    Ok(())
+}
+
+/// The line `render` prints per file written.
+fn report(
+    scene: &Scene,
+    label: &str,
+    path: &Path,
+    spp: u32,
+    paths: u64,
+    discarded: u64,
+    seconds: f64,
+) {
+    // Adaptive sampling gives noisy pixels more than one sample per
+    // pass: say how many paths a pixel got on average.
+    let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
+    let mean_spp = paths as f64 / pixels;
+    let mut notes = Vec::new();
+    if scene.render.adaptive_sampling && mean_spp > f64::from(spp) {
+        notes.push(format!("adaptive: {mean_spp:.1} per pixel on average"));
+    }
+    // Mirror pairs double the samples behind each pixel.
+    if crate::render::mirror_pairs(scene).is_some() {
+        notes.push("read in mirror pairs".to_owned());
+    }
+    let adaptive = if notes.is_empty() {
+        String::new()
+    } else {
+        format!(" ({})", notes.join("; "))
+    };
+    emit(&format!(
+        "{label}{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M camera paths/s), {discarded} samples discarded -> {}\n",
+        scene.render.width,
+        scene.render.height,
+        paths as f64 / seconds / 1e6,
+        path.display()
+    ));
+}
