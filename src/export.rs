@@ -8,6 +8,7 @@ use chrono::{DateTime, Duration, FixedOffset, SecondsFormat};
 
 use crate::output;
 use crate::physics::solar_position;
+use crate::render::parts::{PartData, PassRange, Tile};
 use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
 use crate::scene::{Scene, SceneError};
 
@@ -81,6 +82,196 @@ pub fn render_to_file(
         scene.render.exposure_ev.map(|v| v as f32),
     )?;
     Ok((total, paths, film.discarded))
+}
+
+/// The version of the part files [`render_part_to_file`] writes.
+const PART_FORMAT: &str = "1";
+
+/// Renders passes `passes` of the pixels in `tile` of `scene` into a part
+/// file at `path` (OpenEXR; see [`crate::render::parts`]): per pixel the
+/// camera samples' weighted XYZ sums (`sum.X`, `sum.Y`, `sum.Z`), their
+/// weight (`weight`), the splats' sums (`splat.X`…, where the renderer
+/// splats) and the part's own image (`R`, `G`, `B`, for a look), with the
+/// scene, the passes, the tile and the counts a merge needs in the header.
+/// Returns the camera paths traced.
+pub fn render_part_to_file(
+    scene: &Scene,
+    passes: PassRange,
+    tile: Tile,
+    path: &Path,
+    cancel: &AtomicBool,
+    progress: impl FnMut(u32, &crate::render::Film),
+) -> Result<u64, ExportError> {
+    let renderer = Renderer::new(scene)?;
+    let (film, paths) = service::render_part_blocking(&renderer, passes, tile, cancel, progress)?
+        .ok_or(ExportError::Cancelled)?;
+    let part = film.part_data(passes);
+    let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
+    let plane = |f: &dyn Fn(usize) -> f32| (0..image.pixels.len()).map(f).collect::<Vec<f32>>();
+    let mut channels = Vec::new();
+    for (c, name) in ["X", "Y", "Z"].iter().enumerate() {
+        channels.push((format!("sum.{name}"), plane(&|i| part.sums[i][c])));
+        if !part.splat_sums.is_empty() {
+            channels.push((format!("splat.{name}"), plane(&|i| part.splat_sums[i][c])));
+        }
+    }
+    for (c, name) in ["R", "G", "B"].iter().enumerate() {
+        channels.push(((*name).to_owned(), plane(&|i| image.pixels[i][c])));
+    }
+    channels.push(("weight".into(), part.weights.clone()));
+    let metadata = vec![
+        ("skyrender:part".to_owned(), PART_FORMAT.to_owned()),
+        ("skyrender:version".into(), env!("CARGO_PKG_VERSION").into()),
+        ("skyrender:scene".into(), scene.to_toml()),
+        ("skyrender:part_passes".into(), passes.describe()),
+        ("skyrender:part_tile".into(), tile.describe()),
+        ("skyrender:paths".into(), paths.to_string()),
+        ("skyrender:splat_paths".into(), part.splat_paths.to_string()),
+        (
+            "skyrender:camera_discarded".into(),
+            part.camera_discarded.to_string(),
+        ),
+        (
+            "skyrender:splat_discarded".into(),
+            part.splat_discarded.to_string(),
+        ),
+    ];
+    output::channels::write_exr_channels(
+        path,
+        image.width as usize,
+        image.height as usize,
+        channels,
+        &metadata,
+    )?;
+    Ok(paths)
+}
+
+/// A part file read back.
+struct Part {
+    scene_toml: String,
+    data: PartData,
+    paths: u64,
+}
+
+fn read_part(path: &Path) -> Result<Part, String> {
+    let file = output::channels::read_exr_channels(path)?;
+    let name = path.display();
+    let text = |key: &str| {
+        file.text.get(key).cloned().ok_or_else(|| {
+            format!("'{name}' is not a part of a split render (no {key}; render it with --tile/--tiles/--passes)")
+        })
+    };
+    if text("skyrender:part")? != PART_FORMAT {
+        return Err(format!("'{name}': a part file of another format version"));
+    }
+    let scene_toml = text("skyrender:scene")?;
+    let scene = Scene::from_toml(&scene_toml).map_err(|e| format!("'{name}': {e}"))?;
+    let (width, height) = (scene.render.width, scene.render.height);
+    if (file.width, file.height) != (width as usize, height as usize) {
+        return Err(format!(
+            "'{name}': its size is not its scene's {width}×{height}"
+        ));
+    }
+    let passes = PassRange::parse(&text("skyrender:part_passes")?, scene.render.spp)
+        .map_err(|e| format!("'{name}': {e}"))?;
+    let tile = Tile::parse(&text("skyrender:part_tile")?, width, height)
+        .map_err(|e| format!("'{name}': {e}"))?;
+    let count = |key: &str| -> Result<u64, String> {
+        text(key)?
+            .parse()
+            .map_err(|_| format!("'{name}': {key} is not a count"))
+    };
+    let channel = |key: &str| {
+        file.channels
+            .get(key)
+            .ok_or_else(|| format!("'{name}': no channel {key}"))
+    };
+    let triple = |prefix: &str| -> Result<Vec<[f32; 3]>, String> {
+        let (x, y, z) = (
+            channel(&format!("{prefix}.X"))?,
+            channel(&format!("{prefix}.Y"))?,
+            channel(&format!("{prefix}.Z"))?,
+        );
+        Ok((0..x.len()).map(|i| [x[i], y[i], z[i]]).collect())
+    };
+    let splat_sums = if file.channels.contains_key("splat.X") {
+        triple("splat")?
+    } else {
+        Vec::new()
+    };
+    Ok(Part {
+        data: PartData {
+            passes,
+            tile,
+            sums: triple("sum")?,
+            weights: channel("weight")?.clone(),
+            splat_sums,
+            splat_paths: count("skyrender:splat_paths")?,
+            camera_discarded: count("skyrender:camera_discarded")?,
+            splat_discarded: count("skyrender:splat_discarded")?,
+        },
+        paths: count("skyrender:paths")?,
+        scene_toml,
+    })
+}
+
+/// Merges the part files at `paths` into the image a single render of
+/// their scene gives (see [`crate::render::parts`] for how exactly) and
+/// writes it to `output` (EXR or PNG) with the single render's metadata.
+/// Parts of different scenes, overlapping pass ranges and missing tiles or
+/// passes are refused before anything is written. Returns the scene.
+pub fn merge_parts(paths: &[PathBuf], output: &Path) -> Result<Scene, String> {
+    if paths.is_empty() {
+        return Err("no part files given".into());
+    }
+    let parts: Vec<Part> = paths
+        .iter()
+        .map(|p| read_part(p))
+        .collect::<Result<_, _>>()?;
+    let first = &parts[0];
+    if let Some((i, _)) = parts
+        .iter()
+        .enumerate()
+        .find(|(_, p)| p.scene_toml != first.scene_toml)
+    {
+        return Err(format!(
+            "'{}' and '{}' are parts of different scenes",
+            paths[0].display(),
+            paths[i].display()
+        ));
+    }
+    let scene = Scene::from_toml(&first.scene_toml).map_err(|e| e.to_string())?;
+    let (width, height, spp) = (scene.render.width, scene.render.height, scene.render.spp);
+    let cover: Vec<(PassRange, Tile)> =
+        parts.iter().map(|p| (p.data.passes, p.data.tile)).collect();
+    crate::render::parts::check_cover(&cover, spp, width, height)
+        .map_err(|e| format!("the parts do not make one render: {e}"))?;
+    let splats = parts.iter().any(|p| !p.data.splat_sums.is_empty());
+    if splats && parts.iter().any(|p| p.data.splat_sums.is_empty()) {
+        return Err("some parts have splats and some do not: parts of different builds".into());
+    }
+    let data: Vec<PartData> = parts.iter().map(|p| p.data.clone()).collect();
+    let film = crate::render::Film::from_parts(
+        width,
+        height,
+        spp,
+        crate::render::mirror_pairs(&scene),
+        splats,
+        &data,
+    )
+    .map_err(|_| format!("not enough memory to merge a {width}×{height} image"))?;
+    let image = film
+        .try_to_rgb()
+        .map_err(|_| format!("not enough memory to merge a {width}×{height} image"))?;
+    let total_paths = parts.iter().map(|p| p.paths).sum();
+    output::write_image(
+        output,
+        &image,
+        &exr_metadata(&scene, spp, total_paths, film.discarded),
+        scene.render.exposure_ev.map(|v| v as f32),
+    )
+    .map_err(|e| e.to_string())?;
+    Ok(scene)
 }
 
 /// An output path with a run of `#` standing for the frame number, zero

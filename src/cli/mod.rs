@@ -2,6 +2,8 @@
 
 use std::path::{Path, PathBuf};
 
+use std::time::Instant;
+
 use clap::{Args, Parser, Subcommand};
 
 mod render;
@@ -74,8 +76,20 @@ pub enum Command {
         scene: SceneArgs,
         #[command(flatten)]
         sequence: render::SequenceArgs,
+        #[command(flatten)]
+        split: render::SplitArgs,
         /// Output file, .exr or .png; for a timelapse, a name with a run of
         /// `#` for the frame number (sky_####.exr).
+        #[arg(short, long, value_name = "OUT.exr|OUT.png")]
+        output: PathBuf,
+    },
+    /// Merge the parts of a split render (render --tile/--tiles/--passes)
+    /// into the image one render gives.
+    Merge {
+        /// The part files (EXR), in any order.
+        #[arg(required = true, value_name = "PART.exr")]
+        parts: Vec<PathBuf>,
+        /// Output file, .exr or .png.
         #[arg(short, long, value_name = "OUT.exr|OUT.png")]
         output: PathBuf,
     },
@@ -541,7 +555,23 @@ pub fn run(command: Command) -> Result<(), CliError> {
             scene: args,
             output,
             sequence,
-        } => render::run(&args, &output, &sequence),
+            split,
+        } => render::run(&args, &output, &sequence, &split),
+        Command::Merge { parts, output } => {
+            check_output_path(&output)?;
+            let start = Instant::now();
+            let scene = crate::export::merge_parts(&parts, &output).map_err(CliError::Other)?;
+            outln!(
+                "merged {} part(s): {}x{} at {} spp in {:.2} s -> {}",
+                parts.len(),
+                scene.render.width,
+                scene.render.height,
+                scene.render.spp,
+                start.elapsed().as_secs_f64(),
+                output.display()
+            );
+            Ok(())
+        }
         Command::Radiance {
             scene: args,
             view_zenith,

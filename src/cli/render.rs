@@ -9,6 +9,8 @@ use clap::Args;
 
 use super::{check_output_path, emit, CliError, SceneArgs};
 use crate::export::{self, FramePattern, FrameRange, Timelapse};
+use crate::output::OutputFormat;
+use crate::render::parts::{PassRange, Tile};
 use crate::scene::{Scene, SceneError};
 
 /// A timelapse: frames evenly spaced in time, each with its own Sun.
@@ -39,6 +41,70 @@ pub struct SequenceArgs {
     /// interrupted sequence goes on where it stopped.
     #[arg(long)]
     pub resume: bool,
+}
+
+/// One part of a render split across processes or machines, merged later
+/// by `skyrender merge`.
+#[derive(Args, Debug, Default, Clone)]
+pub struct SplitArgs {
+    /// Render only these pixels, X,Y,W,H (a part file, EXR) [default: the
+    /// whole image].
+    #[arg(long, value_name = "X,Y,W,H", conflicts_with_all = ["tiles", "time_start"])]
+    pub tile: Option<String>,
+    /// Split the image into K bands of whole rows and render band
+    /// --tile-index (a part file, EXR) [default: 1].
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "K",
+        requires = "tile_index",
+        conflicts_with = "time_start"
+    )]
+    pub tiles: Option<i64>,
+    /// The band to render, 0 to K-1 (with --tiles).
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "I",
+        requires = "tiles"
+    )]
+    pub tile_index: Option<i64>,
+    /// Render only passes START..END (from 0, END excluded, at most the
+    /// scene's spp) into a part file (EXR) [default: 0..spp].
+    #[arg(long, value_name = "START..END", conflicts_with = "time_start")]
+    pub passes: Option<String>,
+}
+
+impl SplitArgs {
+    /// The part to render, or `None` for a whole render.
+    fn part(&self, scene: &Scene) -> Result<Option<(PassRange, Tile)>, CliError> {
+        if self.tile.is_none() && self.tiles.is_none() && self.passes.is_none() {
+            return Ok(None);
+        }
+        let (width, height) = (scene.render.width, scene.render.height);
+        let fail = |parameter: &str, e: String| SceneError::new(parameter, e);
+        let tile = match (&self.tile, self.tiles, self.tile_index) {
+            (Some(text), _, _) => Tile::parse(text, width, height).map_err(|e| fail("tile", e))?,
+            (None, Some(k), Some(i)) => {
+                let k = u32::try_from(k)
+                    .map_err(|_| fail("tiles", format!("{k} is not a count of tiles")))?;
+                let i =
+                    u32::try_from(i).map_err(|_| fail("tile index", format!("{i} is negative")))?;
+                Tile::band(k, i, width, height).map_err(|e| fail("tiles", e))?
+            }
+            _ => Tile::whole(width, height),
+        };
+        let passes = match &self.passes {
+            Some(text) => {
+                PassRange::parse(text, scene.render.spp).map_err(|e| fail("passes", e))?
+            }
+            None => PassRange {
+                start: 0,
+                end: scene.render.spp,
+            },
+        };
+        Ok(Some((passes, tile)))
+    }
 }
 
 /// One file to render: its scene, its path and its frame label.
@@ -105,9 +171,60 @@ fn jobs(base: &Scene, output: &Path, sequence: &SequenceArgs) -> Result<Vec<Job>
         .collect()
 }
 
+/// Renders one part of a split render into a part file.
+fn run_part(
+    args: &SceneArgs,
+    scene: &Scene,
+    (passes, tile): (PassRange, Tile),
+    output: &Path,
+    resume: bool,
+) -> Result<(), CliError> {
+    if !matches!(OutputFormat::from_path(output)?, OutputFormat::Exr) {
+        return Err(SceneError::new(
+            "output",
+            format!(
+                "'{}': a part of a split render is an EXR file (merge the parts into a PNG)",
+                output.display()
+            ),
+        )
+        .into());
+    }
+    check_output_path(output)?;
+    if resume && output.exists() {
+        eprintln!(
+            "skyrender: note: --resume: {} exists, skipped",
+            output.display()
+        );
+        return Ok(());
+    }
+    let pool = args.thread_pool()?;
+    args.print_notes(scene);
+    let start = Instant::now();
+    let cancel = AtomicBool::new(false);
+    let paths = pool
+        .install(|| export::render_part_to_file(scene, passes, tile, output, &cancel, |_, _| {}))?;
+    emit(&format!(
+        "part: passes {} of tile {} ({} camera paths) in {:.2} s -> {}\n",
+        passes.describe(),
+        tile.describe(),
+        paths,
+        start.elapsed().as_secs_f64(),
+        output.display()
+    ));
+    Ok(())
+}
+
 /// `skyrender render`.
-pub fn run(args: &SceneArgs, output: &Path, sequence: &SequenceArgs) -> Result<(), CliError> {
+pub fn run(
+    args: &SceneArgs,
+    output: &Path,
+    sequence: &SequenceArgs,
+    split: &SplitArgs,
+) -> Result<(), CliError> {
     let base = args.build()?;
+    if let Some(part) = split.part(&base)? {
+        return run_part(args, &base, part, output, sequence.resume);
+    }
     let mut jobs = jobs(&base, output, sequence)?;
     for job in &jobs {
         check_output_path(&job.path)?;

@@ -57,6 +57,7 @@
 //! temporary file.
 
 pub mod atomic;
+pub mod channels;
 
 use std::collections::HashSet;
 use std::fs::File;
@@ -210,7 +211,41 @@ pub fn write_exr(
     metadata: &[(String, String)],
 ) -> Result<(), OutputError> {
     let (width, height) = checked_size(path, image)?;
+    let layer_attributes = exr_layer_attributes(path, metadata)?;
 
+    let pixels = &image.pixels;
+    let channels = SpecificChannels::rgb(|position: Vec2<usize>| {
+        let [r, g, b] = pixels[position.y() * width + position.x()];
+        (r, g, b)
+    });
+    let layer = Layer::new(
+        (width, height),
+        layer_attributes,
+        Encoding::SMALL_LOSSLESS,
+        channels,
+    );
+    let mut exr_image = ExrImage::from_layer(layer);
+    exr_image.attributes.chromaticities = Some(REC709_CHROMATICITIES);
+
+    write_atomically(path, |writer| {
+        exr_image
+            .write()
+            .to_buffered(&mut *writer)
+            .map_err(|source| OutputError::Exr {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        finish_exr(path, writer)
+    })
+}
+
+/// The header attributes of every EXR layer written here: `whiteLuminance`
+/// 1, `software`, and each metadata pair as a text attribute (keys
+/// non-empty, unique, free of NUL bytes).
+fn exr_layer_attributes(
+    path: &Path,
+    metadata: &[(String, String)],
+) -> Result<LayerAttributes, OutputError> {
     let mut layer_attributes = LayerAttributes {
         white_luminance: Some(1.0),
         software_name: Some(Text::from(concat!("skyrender ", env!("CARGO_PKG_VERSION")))),
@@ -239,37 +274,19 @@ pub fn write_exr(
             AttributeValue::Text(Text::from_slice_unchecked(value.as_bytes())),
         );
     }
+    Ok(layer_attributes)
+}
 
-    let pixels = &image.pixels;
-    let channels = SpecificChannels::rgb(|position: Vec2<usize>| {
-        let [r, g, b] = pixels[position.y() * width + position.x()];
-        (r, g, b)
-    });
-    let layer = Layer::new(
-        (width, height),
-        layer_attributes,
-        Encoding::SMALL_LOSSLESS,
-        channels,
-    );
-    let mut exr_image = ExrImage::from_layer(layer);
-    exr_image.attributes.chromaticities = Some(REC709_CHROMATICITIES);
-
-    write_atomically(path, |writer| {
-        exr_image
-            .write()
-            .to_buffered(&mut *writer)
-            .map_err(|source| OutputError::Exr {
-                path: path.to_path_buf(),
-                source,
-            })?;
-        writer.flush().map_err(|source| OutputError::Io {
-            path: path.to_path_buf(),
-            source,
-        })?;
-        sort_header_attributes(writer.get_mut()).map_err(|source| OutputError::Io {
-            path: path.to_path_buf(),
-            source,
-        })
+/// Flushes an EXR just encoded into `writer` and sorts its header
+/// ([`sort_header_attributes`]).
+fn finish_exr(path: &Path, writer: &mut BufWriter<&mut File>) -> Result<(), OutputError> {
+    writer.flush().map_err(|source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    sort_header_attributes(writer.get_mut()).map_err(|source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
     })
 }
 

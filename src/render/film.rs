@@ -129,6 +129,8 @@ pub struct Film {
     /// Samples (and splats) discarded as non-finite (or negative without
     /// the control variate).
     pub discarded: u64,
+    /// The splats among `discarded`.
+    pub(crate) splat_discarded: u64,
     /// Pixels read together with their mirror images; `None`: each alone.
     pub(crate) mirror: Option<Mirror>,
     /// Sums of the splats of [`super::circles`] (empty unless the renderer
@@ -139,6 +141,14 @@ pub struct Film {
     pub(crate) splat_paths: u64,
     /// The splats' point density learned from the passes so far.
     pub(crate) learned_points: super::circles::LearnedPoints,
+    /// The first pass this film holds: 0, or a later one for a part of a
+    /// split render ([`super::parts`]).
+    pub(crate) first_pass: u32,
+    /// The pixels rendered; `None`: all (see [`super::parts::Tile`]).
+    pub(crate) region: Option<super::parts::Tile>,
+    /// Each pixel's total weight where it is not a function of its row
+    /// (a film merged from parts); empty otherwise.
+    pub(crate) pixel_weights: Vec<f64>,
 }
 
 /// `n` copies of `value`, or an error where the memory is not there (not
@@ -170,10 +180,14 @@ impl Film {
             plan: Vec::new(),
             row_planned_passes: try_filled(height as usize, 0)?,
             discarded: 0,
+            splat_discarded: 0,
             mirror: None,
             splat_sum: Vec::new(),
             splat_paths: 0,
             learned_points: super::circles::LearnedPoints::default(),
+            first_pass: 0,
+            region: None,
+            pixel_weights: Vec::new(),
         })
     }
 
@@ -235,7 +249,10 @@ impl Film {
     }
 
     /// Total weight of the samples of pixel `index` (row-major).
-    fn pixel_weight(&self, index: usize) -> f64 {
+    pub(crate) fn pixel_weight(&self, index: usize) -> f64 {
+        if let Some(&w) = self.pixel_weights.get(index) {
+            return w;
+        }
         let y = index / self.width as usize;
         let extra = f64::from(self.samples_per_pass(index) - 1);
         self.row_weights[y] + extra * f64::from(self.row_planned_passes[y])

@@ -17,6 +17,7 @@ pub mod film;
 pub mod guide;
 pub mod integrator;
 pub mod medium;
+pub mod parts;
 pub mod service;
 pub mod sunlight;
 pub mod trig;
@@ -207,6 +208,8 @@ pub struct PassStats {
     /// Samples (and splats) discarded as non-finite (or negative without
     /// the control variate).
     pub discarded: u64,
+    /// The splats among `discarded`.
+    pub splat_discarded: u64,
 }
 
 /// One spectral radiance estimate with its Monte Carlo standard error.
@@ -563,8 +566,9 @@ impl Renderer {
             film.mirror == self.mirror && film.splats() == self.splatting,
             "render_pass: a film from Renderer::new_film (its mirror pairs, its splat layer) is needed"
         );
+        // A part that starts later plans after its own first pass.
         if self.scene.render.adaptive_sampling
-            && pass == ADAPTIVE_FROM_PASS
+            && pass == ADAPTIVE_FROM_PASS.max(film.first_pass + 1)
             && !film.is_planned()
             && film.complete_passes() == pass
         {
@@ -588,6 +592,16 @@ impl Renderer {
         // The film weighs each planned sample 1 (`Film::xyz`).
         debug_assert!(!planned || weight == 1.0);
         let plan = &film.plan;
+        let region = film.region;
+        // Sample numbers: a single render numbers each pixel's samples
+        // consecutively. A part of a split render that starts at a later
+        // pass with adaptive sampling numbers them pass × 16 + k instead:
+        // the earlier passes of a render that starts at 0 take numbers
+        // below 16 × its end, so parts never share a sample's random
+        // numbers. Without adaptive sampling every pass takes the number
+        // of the pass, as in a single render.
+        let apart = film.first_pass > 0 && self.scene.render.adaptive_sampling;
+        let per_pass = u64::from(film::MAX_SAMPLES_PER_PASS);
         film.xyz_sum
             .par_chunks_mut(width)
             .zip(film.row_passes.par_iter_mut())
@@ -606,15 +620,27 @@ impl Renderer {
                     Film::drop_draft(row, *passes, row_weight);
                 }
                 let mut row_paths = 0;
-                for (x, sum) in row.iter_mut().enumerate() {
+                // Outside a part's tile, the row's pass counts as done with
+                // no samples: the merge takes those pixels from other parts.
+                let (x0, x1) = match region {
+                    Some(t) if !t.contains_row(y as u32) => (0, 0),
+                    Some(t) => (t.x as usize, (t.x + t.width) as usize),
+                    None => (0, width),
+                };
+                for (x, sum) in row.iter_mut().enumerate().take(x1).skip(x0) {
                     // Planned samples are numbered on from the unplanned
                     // passes' (one each), consecutively per pixel.
-                    let (first, count) = if planned {
-                        let m = u64::from(plan[y * width + x]);
-                        let before = u64::from(*passes - *planned_passes);
-                        (before + u64::from(*planned_passes) * m, m)
-                    } else {
-                        (u64::from(pass), 1)
+                    let (first, count) = match (planned, apart) {
+                        (true, false) => {
+                            let m = u64::from(plan[y * width + x]);
+                            let before = u64::from(*passes - *planned_passes);
+                            (before + u64::from(*planned_passes) * m, m)
+                        }
+                        (true, true) => {
+                            (u64::from(pass) * per_pass, u64::from(plan[y * width + x]))
+                        }
+                        (false, true) => (u64::from(pass) * per_pass, 1),
+                        (false, false) => (u64::from(pass), 1),
                     };
                     let integrator = match &splatting {
                         Some(s) if self.camera.pixel_density_bounded(x as u32, y as u32) => s,
@@ -643,11 +669,13 @@ impl Renderer {
             });
         let discarded = discarded.into_inner();
         film.discarded += discarded;
+        film.splat_discarded += splat_discarded;
         PassStats {
             completed: film.row_passes.iter().all(|&p| p > pass),
             paths: paths.into_inner(),
             splat_paths,
             discarded,
+            splat_discarded,
         }
     }
 

@@ -10,6 +10,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use super::parts::{PassRange, Tile};
 use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
 use crate::scene::Scene;
@@ -223,19 +224,43 @@ fn publish(
 pub fn render_blocking(
     renderer: &Renderer,
     cancel: &AtomicBool,
+    on_pass: impl FnMut(u32, &Film),
+) -> Result<Option<(Film, u64)>, OutOfMemory> {
+    let (width, height) = (renderer.scene.render.width, renderer.scene.render.height);
+    let passes = PassRange {
+        start: 0,
+        end: renderer.scene.render.spp,
+    };
+    render_part_blocking(
+        renderer,
+        passes,
+        Tile::whole(width, height),
+        cancel,
+        on_pass,
+    )
+}
+
+/// [`render_blocking`] for one part of a split render: passes `passes` of
+/// the pixels in `tile` ([`super::parts`]); `on_pass` receives the passes
+/// done in the part.
+pub fn render_part_blocking(
+    renderer: &Renderer,
+    passes: PassRange,
+    tile: Tile,
+    cancel: &AtomicBool,
     mut on_pass: impl FnMut(u32, &Film),
 ) -> Result<Option<(Film, u64)>, OutOfMemory> {
     renderer.check_memory()?;
-    let mut film = renderer.try_new_film()?;
+    let mut film = renderer.try_new_film()?.for_part(passes, tile);
     let mut paths = 0;
     let is_cancelled = || cancel.load(Ordering::Relaxed);
-    for pass in 0..renderer.scene.render.spp {
+    for pass in passes.start..passes.end {
         let stats = renderer.render_pass(&mut film, pass, &is_cancelled);
         paths += stats.paths;
         if !stats.completed {
             return Ok(None);
         }
-        on_pass(pass + 1, &film);
+        on_pass(pass + 1 - passes.start, &film);
     }
     Ok(Some((film, paths)))
 }

@@ -1,0 +1,96 @@
+//! EXR files of named float channels (`sum.X`, `weight`, …), for data
+//! other programs need not read as a picture: the parts of a split render.
+//! Written like every EXR here (atomically, header sorted, metadata as text
+//! attributes); read back with the channels by name.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use exr::prelude::{
+    AnyChannel, AnyChannels, AttributeValue, Encoding, FlatSamples, Image as ExrImage, Layer, Text,
+    WritableImage,
+};
+use smallvec::SmallVec;
+
+use super::{exr_layer_attributes, finish_exr, write_atomically, OutputError};
+
+/// Writes `channels` (name, `width`×`height` samples row-major) and the
+/// text `metadata` as one EXR layer, losslessly, atomically.
+pub fn write_exr_channels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Vec<f32>)>,
+    metadata: &[(String, String)],
+) -> Result<(), OutputError> {
+    if let Some((name, _)) = channels.iter().find(|(_, v)| v.len() != width * height) {
+        return Err(OutputError::InvalidImage {
+            path: path.to_path_buf(),
+            reason: format!("channel {name} does not hold {width}×{height} samples"),
+        });
+    }
+    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+        .into_iter()
+        .map(|(name, samples)| {
+            AnyChannel::new(Text::from(name.as_str()), FlatSamples::F32(samples))
+        })
+        .collect();
+    let layer = Layer::new(
+        (width, height),
+        exr_layer_attributes(path, metadata)?,
+        Encoding::SMALL_LOSSLESS,
+        AnyChannels::sort(list),
+    );
+    let image = ExrImage::from_layer(layer);
+    write_atomically(path, |writer| {
+        image
+            .write()
+            .to_buffered(&mut *writer)
+            .map_err(|source| OutputError::Exr {
+                path: path.to_path_buf(),
+                source,
+            })?;
+        finish_exr(path, writer)
+    })
+}
+
+/// An EXR's first layer as named f32 channels and text attributes.
+#[derive(Debug, Default)]
+pub struct ChannelFile {
+    /// Width in pixels.
+    pub width: usize,
+    /// Height in pixels.
+    pub height: usize,
+    /// Samples by channel name (f16 and u32 channels converted to f32).
+    pub channels: HashMap<String, Vec<f32>>,
+    /// Text attributes by name (UTF-8).
+    pub text: HashMap<String, String>,
+}
+
+/// Reads the first layer of the EXR at `path`; the error names the file.
+pub fn read_exr_channels(path: &Path) -> Result<ChannelFile, String> {
+    let image = exr::prelude::read_first_flat_layer_from_file(path)
+        .map_err(|e| format!("cannot read '{}' as OpenEXR: {e}", path.display()))?;
+    let layer = image.layer_data;
+    let mut file = ChannelFile {
+        width: layer.size.width(),
+        height: layer.size.height(),
+        ..ChannelFile::default()
+    };
+    for channel in layer.channel_data.list {
+        let samples = match channel.sample_data {
+            FlatSamples::F32(v) => v,
+            FlatSamples::F16(v) => v.into_iter().map(f32::from).collect(),
+            FlatSamples::U32(v) => v.into_iter().map(|u| u as f32).collect(),
+        };
+        file.channels.insert(channel.name.to_string(), samples);
+    }
+    for (key, value) in &layer.attributes.other {
+        if let AttributeValue::Text(t) = value {
+            let key = String::from_utf8_lossy(key.as_slice()).into_owned();
+            file.text
+                .insert(key, String::from_utf8_lossy(t.as_slice()).into_owned());
+        }
+    }
+    Ok(file)
+}
