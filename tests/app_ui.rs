@@ -11,7 +11,7 @@ use egui::accesskit::Role;
 use egui_kittest::kittest::Queryable as _;
 use egui_kittest::Harness;
 use exr::prelude::{AttributeValue, Text};
-use skyrender::app::{AppState, ExportStatus, SkyApp};
+use skyrender::app::{AppState, ExportStatus, SequenceStatus, SkyApp, SunMode};
 use skyrender::scene::{CameraKind, Scene};
 
 /// An app on `preset` with an 80×40 preview refining to 2 spp and a 64×32, 2 spp export.
@@ -164,25 +164,7 @@ fn export_writes_the_same_exr_as_the_cli() {
     let meta = exr::meta::MetaData::read_from_file(&path, false).unwrap();
     let header = &meta.headers[0];
     assert_eq!((header.layer_size.0, header.layer_size.1), (64, 32));
-    let scene = harness.state().state().export_scene();
-    let attribute = header
-        .own_attributes
-        .other
-        .get(&Text::from("skyrender:scene"))
-        .or_else(|| {
-            header
-                .shared_attributes
-                .other
-                .get(&Text::from("skyrender:scene"))
-        })
-        .expect("skyrender:scene attribute");
-    let AttributeValue::Text(text) = attribute else {
-        panic!("not text: {attribute:?}")
-    };
-    assert_eq!(
-        Scene::from_toml(std::str::from_utf8(text.bytes()).unwrap()).unwrap(),
-        scene
-    );
+    assert_eq!(scene_in(&path), harness.state().state().export_scene());
 
     // `skyrender render --preset sunset --camera equirect --width 64 --height 32 --spp 2`.
     let args = skyrender::cli::SceneArgs {
@@ -205,6 +187,27 @@ fn export_writes_the_same_exr_as_the_cli() {
     let app_exr = exr::prelude::read_all_flat_layers_from_file(&path).unwrap();
     let cli_exr = exr::prelude::read_all_flat_layers_from_file(&cli_path).unwrap();
     assert!(app_exr == cli_exr, "app and CLI files differ");
+}
+
+/// The scene an EXR was rendered from (its `skyrender:scene` header).
+fn scene_in(path: &Path) -> Scene {
+    let meta = exr::meta::MetaData::read_from_file(path, false).unwrap();
+    let header = &meta.headers[0];
+    let attribute = header
+        .own_attributes
+        .other
+        .get(&Text::from("skyrender:scene"))
+        .or_else(|| {
+            header
+                .shared_attributes
+                .other
+                .get(&Text::from("skyrender:scene"))
+        })
+        .expect("skyrender:scene attribute");
+    let AttributeValue::Text(text) = attribute else {
+        panic!("not text: {attribute:?}")
+    };
+    Scene::from_toml(std::str::from_utf8(text.bytes()).unwrap()).unwrap()
 }
 
 /// Files in `dir`, sorted.
@@ -261,7 +264,7 @@ fn cancelled_export_writes_nothing() {
     });
     assert_eq!(
         harness.state().state().export_status,
-        ExportStatus::Cancelled
+        ExportStatus::Cancelled { sequence: None }
     );
     assert!(entries(dir.path()).is_empty(), "{:?}", entries(dir.path()));
 }
@@ -470,4 +473,279 @@ fn render_time_counts_from_the_change_and_stops_when_done() {
     std::thread::sleep(Duration::from_millis(200));
     harness.run_steps(2);
     assert_eq!(harness.state().render_time(), time, "the clock stopped");
+}
+
+/// Switch the Sun panel to date mode and pick Ithaca, NY (UTC−5 at first).
+fn date_mode_at_ithaca(harness: &mut Harness<'_, SkyApp>) {
+    assert_restarts(harness, "date mode", |h| {
+        h.get_by_label("Date, time, place").click_accesskit();
+    });
+    assert_eq!(harness.state().state().sun_mode(), SunMode::DatePlace);
+    harness.get_by_label("Ithaca NY").click_accesskit();
+    harness.run_steps(2);
+}
+
+/// Ithaca, NY, 2013-05-27 11:45 at UTC−4: SPA puts the Sun at 63.35°
+/// elevation, 136.08° azimuth (true, unrefracted).
+#[test]
+fn date_mode_places_the_sun_and_the_time_slider_scrubs_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut harness = harness(tiny_app("midday"));
+    date_mode_at_ithaca(&mut harness);
+    harness
+        .get_by_role_and_label(Role::TextInput, "Date")
+        .set_text_value_accesskit("2013-05-27");
+    harness.run_steps(2);
+    harness
+        .get_by_role_and_label(Role::SpinButton, "UTC offset")
+        .set_value_accesskit(-4.0);
+    harness.run_steps(2);
+    assert_restarts(&mut harness, "time slider", |h| {
+        h.get_by_role_and_label(Role::Slider, "Time")
+            .set_value_accesskit(11.0 * 60.0 + 45.0);
+    });
+    let state = harness.state().state();
+    assert_eq!(state.date_place_error(), None);
+    let sun = state.scene().sun.clone();
+    assert_eq!(sun.date_time.as_deref(), Some("2013-05-27T11:45:00-04:00"));
+    assert_eq!(
+        (sun.latitude_deg, sun.longitude_deg),
+        (Some(42.4434), Some(-76.4816))
+    );
+    assert!((sun.elevation_deg - 63.35).abs() < 0.01, "{sun:?}");
+    assert!((sun.azimuth_deg - 136.08).abs() < 0.01, "{sun:?}");
+    // The result is on screen, read-only.
+    let _ = harness.get_by_label_contains(&format!("Elevation {:.2}°", sun.elevation_deg));
+    let _ = harness.get_by_label_contains("Earth–Sun distance 1.01");
+    // The frame on screen was rendered for that Sun.
+    assert_eq!(
+        harness.state().frame().unwrap().epoch,
+        harness.state().service_epoch()
+    );
+
+    // Scrubbing the time moves the Sun and renders again.
+    assert_restarts(&mut harness, "scrubbing the time", |h| {
+        h.get_by_role_and_label(Role::Slider, "Time")
+            .set_value_accesskit(17.0 * 60.0);
+    });
+    let later = harness.state().state().scene().sun.clone();
+    assert!(
+        later.elevation_deg < sun.elevation_deg - 20.0 && later.azimuth_deg > 250.0,
+        "{later:?}"
+    );
+    assert_eq!(
+        later.date_time.as_deref(),
+        Some("2013-05-27T17:00:00-04:00")
+    );
+
+    // "Save scene…" writes the date and place; loading it back restores them.
+    let toml = dir.path().join("ithaca.toml");
+    harness.state_mut().save_scene_to(toml.clone());
+    step_until(&mut harness, "the save", |app| !app.busy());
+    let saved = Scene::load(&toml).unwrap();
+    assert_eq!(&saved, harness.state().state().scene());
+
+    // Back to manual: the Sun stays where it is, the date and place go.
+    assert_restarts(&mut harness, "manual mode", |h| {
+        h.get_by_label("Elevation/azimuth").click_accesskit();
+    });
+    let manual = harness.state().state().scene().sun.clone();
+    assert_eq!(
+        (manual.elevation_deg, manual.azimuth_deg),
+        (later.elevation_deg, later.azimuth_deg)
+    );
+    assert_eq!(
+        (manual.date_time, manual.latitude_deg, manual.longitude_deg),
+        (None, None, None)
+    );
+    let _ = harness.get_by_role_and_label(Role::Slider, "Elevation");
+
+    // Loading the saved scene brings date mode back with its inputs.
+    harness.state_mut().load_scene_from(toml);
+    step_until(&mut harness, "the load", |app| !app.busy());
+    assert_eq!(harness.state().state().sun_mode(), SunMode::DatePlace);
+    assert_eq!(harness.state().state().date_place().minutes, 17 * 60);
+    // Showing the date controls changes nothing by itself.
+    wait_for_current_frame(&mut harness);
+    let epoch = harness.state().service_epoch();
+    harness.run_steps(10);
+    assert_eq!(harness.state().state().scene(), &saved);
+    assert_eq!(harness.state().service_epoch(), epoch, "no restart");
+}
+
+#[test]
+fn invalid_date_and_place_are_refused_with_a_message() {
+    let mut harness = harness(tiny_app("midday"));
+    date_mode_at_ithaca(&mut harness);
+    harness
+        .get_by_role_and_label(Role::TextInput, "Date")
+        .set_text_value_accesskit("2013-06-21");
+    harness.run_steps(2);
+    wait_for_current_frame(&mut harness);
+    let scene = harness.state().state().scene().clone();
+    let epoch = harness.state().service_epoch();
+
+    harness
+        .get_by_role_and_label(Role::SpinButton, "Latitude")
+        .set_value_accesskit(95.0);
+    harness.run_steps(3);
+    let error = harness
+        .state()
+        .state()
+        .date_place_error()
+        .unwrap()
+        .to_owned();
+    assert!(
+        error.contains("latitude") && error.contains("95"),
+        "{error}"
+    );
+    let _ = harness.get_by_label(&error);
+    let _ = harness.get_by_label_contains("(last valid)");
+    assert_eq!(
+        harness.state().state().scene(),
+        &scene,
+        "the last valid scene"
+    );
+    assert_eq!(harness.state().service_epoch(), epoch, "no restart");
+    assert!(harness.state().state().date_place().latitude_deg == 95.0);
+
+    // A fixed latitude and a date that does not exist.
+    harness
+        .get_by_role_and_label(Role::SpinButton, "Latitude")
+        .set_value_accesskit(42.4434);
+    harness
+        .get_by_role_and_label(Role::TextInput, "Date")
+        .set_text_value_accesskit("2013-02-30");
+    harness.run_steps(3);
+    let error = harness
+        .state()
+        .state()
+        .date_place_error()
+        .unwrap()
+        .to_owned();
+    assert!(error.contains("invalid date"), "{error}");
+    let _ = harness.get_by_label(&error);
+    assert_eq!(harness.state().state().scene(), &scene);
+
+    // Valid again: the error goes and the Sun moves to the new date.
+    harness
+        .get_by_role_and_label(Role::TextInput, "Date")
+        .set_text_value_accesskit("2013-12-21");
+    harness.run_steps(3);
+    assert_eq!(harness.state().state().date_place_error(), None);
+    let sun = &harness.state().state().scene().sun;
+    assert!(
+        sun.elevation_deg < scene.sun.elevation_deg - 10.0,
+        "{sun:?}"
+    );
+    assert!(harness.query_by_label_contains("invalid").is_none());
+}
+
+#[test]
+fn timelapse_export_writes_numbered_frames_and_resumes() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut app = tiny_app("midday");
+    app.state_mut().set_export_width(16);
+    app.state_mut().set_export_spp(1);
+    let mut harness = harness(app);
+    harness.run_steps(2);
+    assert!(
+        harness.query_by_label("Timelapse").is_none(),
+        "a timelapse needs a date"
+    );
+    date_mode_at_ithaca(&mut harness);
+    harness.get_by_label("Timelapse").click_accesskit();
+    harness.run_steps(2);
+    harness
+        .get_by_role_and_label(Role::SpinButton, "Frames")
+        .set_value_accesskit(3.0);
+    harness
+        .get_by_role_and_label(Role::SpinButton, "Duration")
+        .set_value_accesskit(120.0);
+    harness.run_steps(2);
+    let _ = harness.get_by_label("Export timelapse…");
+    let settings = harness.state().state().export.timelapse.clone();
+    assert_eq!((settings.frames, settings.duration_min), (3, 120));
+    let start = harness.state().state().date_place().date_time().unwrap();
+
+    let pattern = dir.path().join(&settings.file_name);
+    harness.state_mut().start_timelapse(pattern.clone());
+    let ExportStatus::Running { total, .. } = harness.state().state().export_status else {
+        panic!("{:?}", harness.state().state().export_status)
+    };
+    assert_eq!(total, 3, "one progress bar for frames × spp");
+    step_until(&mut harness, "the timelapse", |app| {
+        !app.state().export_status.is_running()
+    });
+    let status = harness.state().state().export_status.clone();
+    let done = SequenceStatus {
+        frame: 3,
+        frames: 3,
+        written: 3,
+        skipped: 0,
+    };
+    assert!(
+        matches!(&status, ExportStatus::Finished { path, sequence: Some(s), .. }
+            if *path == pattern && *s == done),
+        "{status:?}"
+    );
+    let frames = ["sky_0001.exr", "sky_0002.exr", "sky_0003.exr"];
+    assert_eq!(entries(dir.path()), frames);
+    // Each frame has its own time, an hour apart, and its own Sun.
+    let scenes: Vec<_> = frames
+        .iter()
+        .map(|f| scene_in(&dir.path().join(f)))
+        .collect();
+    assert_eq!(scenes[0].sun.date_time.as_deref(), Some(start.as_str()));
+    let two_hours_on = harness.state().state().date_place().date_time_after(120);
+    assert_eq!(scenes[2].sun.date_time, Some(two_hours_on.unwrap()));
+    assert!(scenes[0].sun.elevation_deg != scenes[1].sun.elevation_deg);
+    assert_eq!(
+        (
+            scenes[0].render.width,
+            scenes[0].render.height,
+            scenes[0].render.spp
+        ),
+        (16, 8, 1)
+    );
+
+    // Resume: only the missing frame is rendered; the others are left alone.
+    std::fs::remove_file(dir.path().join(frames[1])).unwrap();
+    let modified = |f: &str| {
+        std::fs::metadata(dir.path().join(f))
+            .unwrap()
+            .modified()
+            .unwrap()
+    };
+    let (first, third) = (modified(frames[0]), modified(frames[2]));
+    harness
+        .get_by_label("Skip frames whose file exists")
+        .click_accesskit();
+    harness.run_steps(2);
+    harness.state_mut().start_timelapse(pattern.clone());
+    step_until(&mut harness, "the resumed timelapse", |app| {
+        !app.state().export_status.is_running()
+    });
+    let status = harness.state().state().export_status.clone();
+    assert!(
+        matches!(&status, ExportStatus::Finished { sequence: Some(s), .. }
+            if s.written == 1 && s.skipped == 2),
+        "{status:?}"
+    );
+    assert_eq!(entries(dir.path()), frames);
+    assert_eq!((modified(frames[0]), modified(frames[2])), (first, third));
+    assert_eq!(scene_in(&dir.path().join(frames[1])), scenes[1]);
+    harness.run_steps(2);
+    let _ = harness.get_by_label_contains("1 frame written, 2 skipped");
+
+    // A name without # is refused before anything is rendered.
+    harness.state_mut().state_mut().export.timelapse.file_name = "sky.exr".into();
+    harness
+        .state_mut()
+        .start_timelapse(dir.path().join("sky.exr"));
+    let ExportStatus::Failed(message) = &harness.state().state().export_status else {
+        panic!("{:?}", harness.state().state().export_status)
+    };
+    assert!(message.contains('#'), "{message}");
+    assert_eq!(entries(dir.path()), frames);
 }

@@ -1,6 +1,6 @@
 //! File work of the preview app, as plain functions taking a path (the UI
 //! only asks a dialog for the path and runs these off the UI thread):
-//! the HDR panorama export, saving the view, saving and loading scenes, and
+//! the HDR panorama and timelapse exports, saving the view, saving and loading scenes, and
 //! writing the window screenshot. Every file is written atomically (a
 //! temporary file in the target directory, renamed into place), so a
 //! failure or a cancel never leaves a half-written file behind.
@@ -12,7 +12,8 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
-use super::state::{DisplaySettings, ToneCurve};
+use super::state::{DisplaySettings, SequenceStatus, ToneCurve};
+use crate::export::{FramePattern, Timelapse};
 use crate::output::{self, check_writable, replace_file, OutputFormat};
 use crate::render::service::Frame;
 use crate::scene::Scene;
@@ -32,6 +33,20 @@ pub fn check_export_path(path: &Path) -> Result<(), String> {
         Err(e) => return Err(e.to_string()),
     }
     check_writable(path)
+}
+
+/// How far an export has got, shared with its thread.
+#[derive(Debug, Default)]
+pub struct ExportProgress {
+    /// Completed passes (a timelapse: of all its frames so far, a skipped
+    /// frame counting as all of its passes).
+    pub passes: AtomicU32,
+    /// The frame being rendered or looked at, from 1 (0 for one panorama).
+    pub frame: AtomicU32,
+    /// Frames written.
+    pub written: AtomicU32,
+    /// Frames skipped because their file existed.
+    pub skipped: AtomicU32,
 }
 
 /// Render `scene` (already set to an equirectangular camera, the export size
@@ -54,13 +69,71 @@ pub fn export_panorama(
     Ok(start.elapsed())
 }
 
-/// A running HDR panorama export on its own thread.
+/// Render the frames of `timelapse` from `base` (an export scene, see
+/// [`super::AppState::export_scene`]) one after another into the files
+/// `pattern` names (`sky_####.exr`). With `skip_existing`, frames whose file exists are left alone, so
+/// an interrupted sequence can be resumed. Each file is written whole or
+/// not at all, so a cancel or an error leaves the finished frames and no
+/// partial one. Blocks; returns the wall-clock time.
+pub fn export_timelapse(
+    timelapse: &Timelapse,
+    base: &Scene,
+    pattern: &Path,
+    skip_existing: bool,
+    cancel: &AtomicBool,
+    progress: &ExportProgress,
+) -> Result<Duration, String> {
+    let start = Instant::now();
+    let files = FramePattern::parse(pattern).ok_or_else(|| {
+        format!(
+            "invalid timelapse file name '{}': it needs a run of # for the frame number",
+            pattern.display()
+        )
+    })?;
+    // Every frame goes to the same folder with the same extension.
+    check_export_path(&files.path_for(1))?;
+    let frames = timelapse.frames();
+    let spp = base.render.spp;
+    for frame in 1..=frames {
+        if cancel.load(Ordering::Relaxed) {
+            return Err(crate::export::ExportError::Cancelled.to_string());
+        }
+        progress.frame.store(frame, Ordering::Relaxed);
+        let done_before = (frame - 1).saturating_mul(spp);
+        progress.passes.store(done_before, Ordering::Relaxed);
+        let path = files.path_for(frame);
+        let fail = |e: &dyn std::fmt::Display| {
+            format!("frame {frame} of {frames} ('{}'): {e}", path.display())
+        };
+        if skip_existing && path.is_file() {
+            progress.skipped.fetch_add(1, Ordering::Relaxed);
+            continue;
+        }
+        let scene = timelapse.scene_for(base, frame).map_err(|e| fail(&e))?;
+        check_export_path(&path).map_err(|e| fail(&e))?;
+        crate::export::render_to_file(&scene, &path, cancel, |pass, _| {
+            progress
+                .passes
+                .store(done_before.saturating_add(pass), Ordering::Relaxed);
+        })
+        .map_err(|e| fail(&e))?;
+        progress.written.fetch_add(1, Ordering::Relaxed);
+    }
+    progress
+        .passes
+        .store(frames.saturating_mul(spp), Ordering::Relaxed);
+    Ok(start.elapsed())
+}
+
+/// A running export (one panorama or a timelapse) on its own thread.
 pub struct ExportJob {
-    /// Target file.
+    /// Target file (a timelapse: the file name pattern).
     pub path: PathBuf,
-    /// Passes in all.
+    /// Passes in all (a timelapse: of all its frames).
     pub total: u32,
-    progress: Arc<AtomicU32>,
+    /// Frames of a timelapse; `None` for one panorama.
+    pub frames: Option<u32>,
+    progress: Arc<ExportProgress>,
     cancel: Arc<AtomicBool>,
     handle: Option<JoinHandle<Result<Duration, String>>>,
 }
@@ -73,16 +146,58 @@ impl ExportJob {
         path: PathBuf,
         on_done: impl FnOnce() + Send + 'static,
     ) -> Result<Self, String> {
-        let progress = Arc::new(AtomicU32::new(0));
-        let cancel = Arc::new(AtomicBool::new(false));
         let total = scene.render.spp;
-        let (thread_progress, thread_cancel, thread_path) =
-            (Arc::clone(&progress), Arc::clone(&cancel), path.clone());
+        let thread_path = path.clone();
+        Self::spawn(path, total, None, on_done, move |cancel, progress| {
+            export_panorama(&scene, &thread_path, cancel, &progress.passes)
+        })
+    }
+
+    /// Start exporting the frames of `timelapse` from `base` into the files
+    /// `pattern` names in the background ([`export_timelapse`]); `on_done`
+    /// runs on the export thread when it ends.
+    pub fn start_timelapse(
+        timelapse: Timelapse,
+        base: Scene,
+        pattern: PathBuf,
+        skip_existing: bool,
+        on_done: impl FnOnce() + Send + 'static,
+    ) -> Result<Self, String> {
+        let frames = timelapse.frames();
+        let total = frames.saturating_mul(base.render.spp);
+        let thread_pattern = pattern.clone();
+        Self::spawn(
+            pattern,
+            total,
+            Some(frames),
+            on_done,
+            move |cancel, progress| {
+                export_timelapse(
+                    &timelapse,
+                    &base,
+                    &thread_pattern,
+                    skip_existing,
+                    cancel,
+                    progress,
+                )
+            },
+        )
+    }
+
+    fn spawn(
+        path: PathBuf,
+        total: u32,
+        frames: Option<u32>,
+        on_done: impl FnOnce() + Send + 'static,
+        work: impl FnOnce(&AtomicBool, &ExportProgress) -> Result<Duration, String> + Send + 'static,
+    ) -> Result<Self, String> {
+        let progress = Arc::new(ExportProgress::default());
+        let cancel = Arc::new(AtomicBool::new(false));
+        let (thread_progress, thread_cancel) = (Arc::clone(&progress), Arc::clone(&cancel));
         let handle = std::thread::Builder::new()
             .name("skyrender-export".into())
             .spawn(move || {
-                let result =
-                    export_panorama(&scene, &thread_path, &thread_cancel, &thread_progress);
+                let result = work(&thread_cancel, &thread_progress);
                 on_done();
                 result
             })
@@ -90,6 +205,7 @@ impl ExportJob {
         Ok(Self {
             path,
             total,
+            frames,
             progress,
             cancel,
             handle: Some(handle),
@@ -98,7 +214,19 @@ impl ExportJob {
 
     /// Completed passes.
     pub fn done(&self) -> u32 {
-        self.progress.load(Ordering::Relaxed)
+        self.progress.passes.load(Ordering::Relaxed)
+    }
+
+    /// Where a timelapse stands in its sequence; `None` for one panorama.
+    pub fn sequence(&self) -> Option<SequenceStatus> {
+        let frames = self.frames?;
+        let p = &self.progress;
+        Some(SequenceStatus {
+            frame: p.frame.load(Ordering::Relaxed),
+            frames,
+            written: p.written.load(Ordering::Relaxed),
+            skipped: p.skipped.load(Ordering::Relaxed),
+        })
     }
 
     /// Ask the export to stop (it ends within one row of rendering).
@@ -129,7 +257,7 @@ impl ExportJob {
 impl Drop for ExportJob {
     fn drop(&mut self) {
         // An app closing mid-export stops it; the detached thread then ends
-        // without writing anything.
+        // without writing anything more.
         self.cancel();
     }
 }

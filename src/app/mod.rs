@@ -2,19 +2,33 @@
 //!
 //! * [`state`]: [`AppState`], the scene and the display/render/export
 //!   settings as a plain struct, testable without a window.
-//! * [`io`]: the file work (HDR export, saving the view, scene TOML,
-//!   screenshots) as plain functions taking a path.
-//! * [`ui`]: [`SkyApp`], the window, and [`run_app`], its entry point.
+//! * [`sun_place`]: the Sun panel's date, time and place inputs and how
+//!   they become the scene's `sun.date_time`, latitude and longitude.
+//! * [`io`]: the file work (HDR panorama and timelapse exports, saving the
+//!   view, scene TOML, screenshots) as plain functions taking a path.
+//! * [`ui`]: [`SkyApp`], the window's layout and its background work; the
+//!   side panel's sections are in `panels` (one file each), the sky image
+//!   in `view`, the timing in `timing`, and opening the window
+//!   ([`run_app`]) in `window`.
 //!
 //! Rendering runs on a [`crate::render::service::RenderService`]: every
 //! scene change restarts it (a new epoch), and the UI uploads each newly
 //! published pass as a texture.
 
 pub mod io;
+mod panels;
 pub mod state;
+pub mod sun_place;
+mod timing;
 pub mod ui;
+mod view;
+mod window;
 
 pub use state::{
-    AppState, DisplaySettings, ExportSettings, ExportStatus, RenderSettings, ToneCurve,
+    AppState, DisplaySettings, ExportSettings, ExportStatus, RenderSettings, SequenceStatus,
+    TimelapseSettings, ToneCurve,
 };
-pub use ui::{run_app, LatencyStats, SkyApp, NO_DISPLAY_MESSAGE, WINDOW_SIZE};
+pub use sun_place::{DatePlace, SunMode};
+pub use timing::LatencyStats;
+pub use ui::SkyApp;
+pub use window::{run_app, NO_DISPLAY_MESSAGE, WINDOW_SIZE};

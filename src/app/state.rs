@@ -10,7 +10,9 @@
 use std::path::PathBuf;
 use std::time::Duration;
 
+use super::sun_place::{DatePlace, SunMode};
 use crate::atmosphere::{Atmosphere, AtmosphereParams};
+use crate::export::{Timelapse, MAX_FRAMES};
 use crate::scene::{CameraKind, Scene};
 
 /// Pixels in the preview at scale 1 (320 × 160 for the equirectangular view).
@@ -42,6 +44,8 @@ pub const MAX_EXPORT_SPP: u32 = 1 << 16;
 pub const MAX_EXPORT_WIDTH: u32 = 16_384;
 /// Export panorama sizes offered (width; the height is half of it).
 pub const EXPORT_WIDTHS: [u32; 5] = [512, 1024, 2048, 4096, 8192];
+/// Longest timelapse the app offers, minutes (a week).
+pub const MAX_TIMELAPSE_MINUTES: u32 = 7 * 24 * 60;
 
 /// How linear radiance becomes display values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
@@ -142,6 +146,8 @@ pub struct ExportSettings {
     pub width: u32,
     /// Samples per pixel.
     pub spp: u32,
+    /// A sequence of panoramas over time instead of one.
+    pub timelapse: TimelapseSettings,
 }
 
 impl Default for ExportSettings {
@@ -149,6 +155,36 @@ impl Default for ExportSettings {
         Self {
             width: 4096,
             spp: 64,
+            timelapse: TimelapseSettings::default(),
+        }
+    }
+}
+
+/// A timelapse export: panoramas at evenly spaced times from the Sun
+/// panel's date and time on (offered where the Sun is placed by date).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TimelapseSettings {
+    /// Export the sequence rather than one panorama.
+    pub enabled: bool,
+    /// Time from the first frame to the last, minutes.
+    pub duration_min: u32,
+    /// Frames in the sequence, first and last included.
+    pub frames: u32,
+    /// The frames' file name, a run of `#` standing for the frame number
+    /// (`sky_####.exr` → `sky_0001.exr`, …).
+    pub file_name: String,
+    /// Leave frames whose file exists alone (to resume a sequence).
+    pub skip_existing: bool,
+}
+
+impl Default for TimelapseSettings {
+    fn default() -> Self {
+        Self {
+            enabled: false,
+            duration_min: 12 * 60,
+            frames: 25,
+            file_name: "sky_####.exr".into(),
+            skip_existing: false,
         }
     }
 }
@@ -160,6 +196,19 @@ impl ExportSettings {
     }
 }
 
+/// Where a timelapse export stands in its sequence.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct SequenceStatus {
+    /// The frame being rendered (the last one looked at once it ended), from 1.
+    pub frame: u32,
+    /// Frames in the sequence.
+    pub frames: u32,
+    /// Frames written so far.
+    pub written: u32,
+    /// Frames skipped because their file existed.
+    pub skipped: u32,
+}
+
 /// Where the HDR panorama export stands.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub enum ExportStatus {
@@ -168,23 +217,32 @@ pub enum ExportStatus {
     Idle,
     /// Rendering `done` of `total` passes into `path`.
     Running {
-        /// Target file.
+        /// Target file (a timelapse: the file name pattern).
         path: PathBuf,
-        /// Completed passes.
+        /// Completed passes (a timelapse: of all its frames).
         done: u32,
-        /// Passes in all (the export spp).
+        /// Passes in all (the export spp; a timelapse: times its frames).
         total: u32,
+        /// A timelapse's frames.
+        sequence: Option<SequenceStatus>,
     },
-    /// The file was written.
+    /// The file (a timelapse: every frame) was written.
     Finished {
-        /// The file written.
+        /// The file written (a timelapse: the file name pattern).
         path: PathBuf,
         /// Wall-clock time of the export.
         elapsed: Duration,
+        /// A timelapse's frames.
+        sequence: Option<SequenceStatus>,
     },
-    /// Cancelled by the user; nothing was written.
-    Cancelled,
-    /// The export failed; nothing was written.
+    /// Cancelled by the user; nothing was written (a timelapse: no
+    /// partial frame; the frames finished before are kept).
+    Cancelled {
+        /// A timelapse's frames.
+        sequence: Option<SequenceStatus>,
+    },
+    /// The export failed; nothing was written (a timelapse: the frames
+    /// finished before are kept; the message says how many).
     Failed(String),
 }
 
@@ -212,6 +270,13 @@ pub struct AppState {
     pub message: Option<String>,
     /// Ozone column of the model's own profile, DU (what `ozone_du = None` means).
     profile_ozone_du: f64,
+    /// How the Sun is placed.
+    sun_mode: SunMode,
+    /// The date, time and place inputs (kept in manual mode too, for the
+    /// next switch to date mode).
+    date_place: DatePlace,
+    /// Why the date, time and place inputs do not place the Sun, if they don't.
+    date_place_error: Option<String>,
     dirty: bool,
 }
 
@@ -233,6 +298,9 @@ impl AppState {
             last_error: None,
             message: None,
             profile_ozone_du: 0.0,
+            sun_mode: SunMode::Manual,
+            date_place: DatePlace::default(),
+            date_place_error: None,
             dirty: true,
         };
         state.set_scene(scene);
@@ -266,12 +334,22 @@ impl AppState {
     }
 
     /// Replace the whole scene (a preset or a loaded file). A scene that
-    /// fails validation is rejected with its error and the old one kept.
+    /// fails validation is rejected with its error and the old one kept. A
+    /// scene with a date and a place puts the Sun panel in date mode with
+    /// its inputs; one without, in manual mode.
     pub fn set_scene(&mut self, scene: Scene) -> bool {
         if let Err(e) = scene.validate() {
             self.last_error = Some(e.to_string());
             return false;
         }
+        match DatePlace::from_sun(&scene.sun) {
+            Some(place) => {
+                self.sun_mode = SunMode::DatePlace;
+                self.date_place = place;
+            }
+            None => self.sun_mode = SunMode::Manual,
+        }
+        self.date_place_error = None;
         let mut params = scene.atmosphere.clone();
         params.ozone = true;
         params.ozone_du = None;
@@ -312,13 +390,17 @@ impl AppState {
         }
     }
 
-    /// Sun elevation, degrees, clamped to [`SUN_ELEVATION_RANGE`].
+    /// Sun elevation, degrees, clamped to [`SUN_ELEVATION_RANGE`]. Places
+    /// the Sun by hand (leaves date mode).
     pub fn set_sun_elevation(&mut self, deg: f64) {
+        self.set_sun_mode(SunMode::Manual);
         self.update(deg, SUN_ELEVATION_RANGE, |s| &mut s.sun.elevation_deg);
     }
 
-    /// Sun azimuth, degrees clockwise from north, wrapped to 0–360.
+    /// Sun azimuth, degrees clockwise from north, wrapped to 0–360. Places
+    /// the Sun by hand (leaves date mode).
     pub fn set_sun_azimuth(&mut self, deg: f64) {
+        self.set_sun_mode(SunMode::Manual);
         let wrapped = if deg == 360.0 {
             deg
         } else {
@@ -327,9 +409,81 @@ impl AppState {
         self.update(wrapped, (0.0, 360.0), |s| &mut s.sun.azimuth_deg);
     }
 
-    /// Observer altitude, m, clamped to 0–[`MAX_APP_ALTITUDE_M`].
+    /// How the Sun is placed.
+    pub fn sun_mode(&self) -> SunMode {
+        self.sun_mode
+    }
+
+    /// The date, time and place inputs (what the Sun panel shows in date mode).
+    pub fn date_place(&self) -> &DatePlace {
+        &self.date_place
+    }
+
+    /// Why the date, time and place inputs do not place the Sun (the scene
+    /// then keeps its last valid Sun); `None` when they do, or in manual mode.
+    pub fn date_place_error(&self) -> Option<&str> {
+        self.date_place_error.as_deref()
+    }
+
+    /// Place the Sun by hand or by date. Switching to date mode places it
+    /// from the inputs (if they are valid); switching to manual keeps its
+    /// elevation and azimuth and clears the scene's date, time and place.
+    pub fn set_sun_mode(&mut self, mode: SunMode) {
+        if self.sun_mode == mode {
+            return;
+        }
+        self.sun_mode = mode;
+        match mode {
+            SunMode::Manual => {
+                self.date_place_error = None;
+                let sun = &mut self.scene.sun;
+                if sun.date_time.is_some() || sun.latitude_deg.is_some() {
+                    sun.date_time = None;
+                    sun.latitude_deg = None;
+                    sun.longitude_deg = None;
+                    // The Earth–Sun distance was the date's; now 1 AU.
+                    self.dirty = true;
+                }
+            }
+            SunMode::DatePlace => self.apply_date_place(),
+        }
+    }
+
+    /// Set the date, time and place inputs; in date mode the Sun moves to
+    /// them if they are valid, and otherwise keeps its place while
+    /// [`Self::date_place_error`] says what is wrong.
+    pub fn set_date_place(&mut self, place: DatePlace) {
+        if self.date_place == place {
+            return;
+        }
+        self.date_place = place;
+        if self.sun_mode == SunMode::DatePlace {
+            self.apply_date_place();
+        }
+    }
+
+    /// Place the Sun from the inputs, or record why they cannot.
+    fn apply_date_place(&mut self) {
+        match self.date_place.place(&self.scene) {
+            Ok(scene) => {
+                self.date_place_error = None;
+                if scene != self.scene {
+                    self.scene = scene;
+                    self.dirty = true;
+                }
+            }
+            Err(e) => self.date_place_error = Some(e),
+        }
+    }
+
+    /// Observer altitude, m, clamped to 0–[`MAX_APP_ALTITUDE_M`] (in date
+    /// mode the Sun is placed again: its position is the observer's).
     pub fn set_altitude_m(&mut self, m: f64) {
+        let before = self.scene.observer.altitude_m;
         self.update(m, (0.0, MAX_APP_ALTITUDE_M), |s| &mut s.observer.altitude_m);
+        if self.sun_mode == SunMode::DatePlace && self.scene.observer.altitude_m != before {
+            self.apply_date_place();
+        }
     }
 
     /// Switch the camera projection. The field of view is brought into the
@@ -509,53 +663,53 @@ impl AppState {
         self.export.spp = spp.clamp(1, MAX_EXPORT_SPP);
     }
 
+    /// Set the timelapse's frame count, 1–[`MAX_FRAMES`].
+    pub fn set_timelapse_frames(&mut self, frames: u32) {
+        self.export.timelapse.frames = frames.clamp(1, MAX_FRAMES);
+    }
+
+    /// Set the timelapse's duration, minutes, 0–[`MAX_TIMELAPSE_MINUTES`].
+    pub fn set_timelapse_duration(&mut self, minutes: u32) {
+        self.export.timelapse.duration_min = minutes.min(MAX_TIMELAPSE_MINUTES);
+    }
+
+    /// Whether the export is a timelapse: asked for, and the Sun placed by date.
+    pub fn timelapse_enabled(&self) -> bool {
+        self.export.timelapse.enabled && self.sun_mode == SunMode::DatePlace
+    }
+
+    /// The timelapse the export settings describe: from the Sun panel's
+    /// date and time over the set duration. An error says why there is
+    /// none (manual Sun, invalid inputs, no `#` in the file name).
+    pub fn timelapse(&self) -> Result<Timelapse, String> {
+        if self.sun_mode != SunMode::DatePlace {
+            return Err("a timelapse needs the Sun placed by date, time and place".into());
+        }
+        if let Some(e) = &self.date_place_error {
+            return Err(e.clone());
+        }
+        let settings = &self.export.timelapse;
+        let name = settings.file_name.trim();
+        if name.contains(std::path::is_separator) {
+            return Err(format!(
+                "invalid file name '{name}': a name only (the folder is asked for next)"
+            ));
+        }
+        if !name.contains('#') {
+            return Err(format!(
+                "invalid file name '{name}': it needs a run of # for the frame number \
+                 (sky_####.exr)"
+            ));
+        }
+        let start = self.date_place.date_time()?;
+        let end = self.date_place.date_time_after(settings.duration_min)?;
+        Timelapse::new(&start, &end, settings.frames).map_err(|e| e.to_string())
+    }
+
     /// The parameters of the atmosphere as set (for display).
     pub fn atmosphere(&self) -> &AtmosphereParams {
         &self.scene.atmosphere
     }
-}
-
-/// `log10(altitude + 1)`: the altitude slider's position for an altitude in m.
-pub fn altitude_to_slider(altitude_m: f64) -> f64 {
-    (altitude_m.max(0.0) + 1.0).log10()
-}
-
-/// Inverse of [`altitude_to_slider`], m (rounded to 3 significant digits
-/// above 100 m so that dragged values stay readable).
-pub fn slider_to_altitude(position: f64) -> f64 {
-    let m = (10f64.powf(position) - 1.0).max(0.0);
-    if m < 100.0 {
-        (m * 10.0).round() / 10.0
-    } else {
-        let magnitude = 10f64.powf(m.log10().floor() - 2.0);
-        (m / magnitude).round() * magnitude
-    }
-}
-
-/// An altitude for display: "2 m", "10.0 km", "400 km".
-pub fn format_altitude(m: f64) -> String {
-    if m < 1_000.0 {
-        format!("{m:.0} m")
-    } else if m < 100_000.0 {
-        format!("{:.1} km", m / 1_000.0)
-    } else {
-        format!("{:.0} km", m / 1_000.0)
-    }
-}
-
-/// Parse an altitude typed by the user: a number in m, or with a unit
-/// "m" / "km" ("10 km", "400km", "2500 m").
-pub fn parse_altitude(text: &str) -> Option<f64> {
-    let t = text.trim().to_ascii_lowercase();
-    let (number, factor) = if let Some(n) = t.strip_suffix("km") {
-        (n, 1_000.0)
-    } else if let Some(n) = t.strip_suffix('m') {
-        (n, 1.0)
-    } else {
-        (t.as_str(), 1.0)
-    };
-    let value = number.trim().parse::<f64>().ok()? * factor;
-    value.is_finite().then_some(value)
 }
 
 #[cfg(test)]
@@ -678,21 +832,132 @@ mod tests {
         assert_eq!(state.ozone_column_du(), 300.0);
     }
 
-    #[test]
-    fn altitude_slider_mapping() {
-        for m in [0.0, 2.0, 10_000.0, 400_000.0, 1.0e6] {
-            let back = slider_to_altitude(altitude_to_slider(m));
-            assert!((back - m).abs() <= 1e-6 * m.max(1.0), "{m} -> {back}");
+    fn ithaca() -> DatePlace {
+        DatePlace {
+            date: "2013-05-27".into(),
+            minutes: 11 * 60 + 45,
+            utc_offset_min: -240,
+            latitude_deg: 42.4434,
+            longitude_deg: -76.4816,
         }
-        assert_eq!(slider_to_altitude(altitude_to_slider(12_345.0)), 12_300.0);
-        assert_eq!(format_altitude(2.0), "2 m");
-        assert_eq!(format_altitude(10_000.0), "10.0 km");
-        assert_eq!(format_altitude(400_000.0), "400 km");
-        assert_eq!(parse_altitude("10 km"), Some(10_000.0));
-        assert_eq!(parse_altitude(" 2500m"), Some(2_500.0));
-        assert_eq!(parse_altitude("12"), Some(12.0));
-        assert_eq!(parse_altitude("high"), None);
-        assert_eq!(parse_altitude("inf"), None);
+    }
+
+    #[test]
+    fn date_mode_places_the_sun_and_manual_mode_keeps_it() {
+        let mut state = AppState::default();
+        state.set_date_place(ithaca());
+        assert_eq!(state.sun_mode(), SunMode::Manual);
+        assert!(state.take_dirty() && !state.take_dirty());
+        assert_eq!(
+            state.scene().sun.date_time,
+            None,
+            "inputs alone move nothing"
+        );
+        state.set_sun_mode(SunMode::DatePlace);
+        assert!(state.take_dirty());
+        let sun = state.scene().sun.clone();
+        assert_eq!(sun.date_time.as_deref(), Some("2013-05-27T11:45:00-04:00"));
+        assert!((sun.elevation_deg - 63.35).abs() < 0.01, "{sun:?}");
+        state.export_scene().validate().unwrap();
+        // The observer's height is part of where the Sun is seen from.
+        state.set_altitude_m(400_000.0);
+        assert_eq!(state.scene().sun.date_time, sun.date_time);
+
+        let placed = state.scene().sun.clone();
+        state.set_sun_mode(SunMode::Manual);
+        assert!(state.take_dirty());
+        let manual = &state.scene().sun;
+        assert_eq!(
+            (manual.elevation_deg, manual.azimuth_deg),
+            (placed.elevation_deg, placed.azimuth_deg)
+        );
+        assert!((manual.elevation_deg - sun.elevation_deg).abs() < 0.01);
+        assert_eq!(
+            (manual.date_time.as_ref(), manual.latitude_deg),
+            (None, None)
+        );
+        assert!(state.timelapse().is_err(), "a timelapse needs date mode");
+
+        // Setting the Sun by hand leaves date mode.
+        state.set_sun_mode(SunMode::DatePlace);
+        state.set_sun_elevation(10.0);
+        assert_eq!(state.sun_mode(), SunMode::Manual);
+        assert_eq!(state.scene().sun.date_time, None);
+    }
+
+    #[test]
+    fn invalid_date_places_keep_the_last_valid_scene() {
+        let mut state = AppState::default();
+        state.set_date_place(ithaca());
+        state.set_sun_mode(SunMode::DatePlace);
+        let valid = state.scene().clone();
+        state.take_dirty();
+        for bad in [
+            DatePlace {
+                latitude_deg: 91.0,
+                ..ithaca()
+            },
+            DatePlace {
+                date: "2013-5-".into(),
+                ..ithaca()
+            },
+            DatePlace {
+                utc_offset_min: -13 * 60,
+                ..ithaca()
+            },
+        ] {
+            state.set_date_place(bad.clone());
+            assert!(state.date_place_error().is_some(), "{bad:?}");
+            assert_eq!(state.scene(), &valid);
+            assert!(!state.is_dirty());
+            assert_eq!(state.date_place(), &bad, "the input is kept to be fixed");
+            assert!(state.timelapse().is_err());
+        }
+        state.set_date_place(ithaca());
+        assert_eq!(state.date_place_error(), None);
+        // A loaded scene with a date brings its inputs; one without, manual mode.
+        let mut dated = Scene::default();
+        dated.sun.date_time = Some("2013-12-21T12:00:00+01:00".into());
+        dated.sun.latitude_deg = Some(78.2232);
+        dated.sun.longitude_deg = Some(15.6267);
+        dated.place_sun().unwrap();
+        assert!(state.set_scene(dated));
+        assert_eq!(state.sun_mode(), SunMode::DatePlace);
+        assert_eq!(state.date_place().utc_offset_min, 60);
+        assert!(state.scene().sun.elevation_deg < 0.0, "polar night");
+        assert!(state.load_preset("midday"));
+        assert_eq!(state.sun_mode(), SunMode::Manual);
+    }
+
+    #[test]
+    fn timelapse_settings_are_checked() {
+        let mut state = AppState::default();
+        state.set_date_place(ithaca());
+        state.set_sun_mode(SunMode::DatePlace);
+        state.set_timelapse_frames(3);
+        state.set_timelapse_duration(120);
+        let timelapse = state.timelapse().unwrap();
+        assert_eq!(timelapse.frames(), 3);
+        assert_eq!(
+            timelapse.time_of(3).to_rfc3339(),
+            "2013-05-27T13:45:00-04:00"
+        );
+        state.set_timelapse_frames(0);
+        assert_eq!(state.export.timelapse.frames, 1);
+        state.set_timelapse_frames(3);
+        state.set_timelapse_duration(0);
+        assert!(state.timelapse().unwrap_err().contains("span"));
+        state.set_timelapse_duration(u32::MAX);
+        assert_eq!(state.export.timelapse.duration_min, MAX_TIMELAPSE_MINUTES);
+        for name in ["sky.exr", "out/sky_##.exr"] {
+            state.export.timelapse.file_name = name.into();
+            assert!(state.timelapse().is_err(), "{name}");
+        }
+        assert!(!state.timelapse_enabled());
+        state.export.timelapse.enabled = true;
+        assert!(state.timelapse_enabled());
+        state.set_sun_mode(SunMode::Manual);
+        assert!(!state.timelapse_enabled());
     }
 
     #[test]

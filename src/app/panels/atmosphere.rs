@@ -1,0 +1,86 @@
+//! The Atmosphere section: aerosols, ozone and the ground's albedo.
+
+use super::slider;
+use crate::app::state::{AppState, AEROSOL_AMOUNT_RANGE, OZONE_DU_RANGE};
+
+/// The Atmosphere section.
+pub struct AtmospherePanel<'a> {
+    /// The state whose atmosphere it sets.
+    pub state: &'a mut AppState,
+}
+
+impl AtmospherePanel<'_> {
+    /// Draw the section.
+    pub fn ui(&mut self, ui: &mut egui::Ui) {
+        egui::CollapsingHeader::new("Atmosphere")
+            .default_open(true)
+            .show(ui, |ui| {
+                let a = self.state.atmosphere().clone();
+                let mut aerosols = a.aerosols;
+                if ui
+                    .checkbox(&mut aerosols, "Aerosols")
+                    .on_hover_text(
+                        "Haze particles (Elterman's profile): whiter sky near the horizon, \
+                 glow around the sun",
+                    )
+                    .changed()
+                {
+                    self.state.set_aerosols(aerosols);
+                }
+                ui.add_enabled_ui(aerosols, |ui| {
+                    if let Some(v) = slider(
+                        ui,
+                        a.aerosol_amount,
+                        AEROSOL_AMOUNT_RANGE,
+                        "Aerosol amount",
+                        "×",
+                        "Multiple of the standard aerosol profile (1 = clear standard day)",
+                    ) {
+                        self.state.set_aerosol_amount(v);
+                    }
+                });
+                let mut ozone = a.ozone;
+                if ui
+                    .checkbox(&mut ozone, "Ozone")
+                    .on_hover_text(
+                        "Ozone absorption (Chappuis band): keeps the twilight zenith blue",
+                    )
+                    .changed()
+                {
+                    self.state.set_ozone(ozone);
+                }
+                ui.add_enabled_ui(ozone, |ui| {
+                    ui.horizontal(|ui| {
+                        if let Some(v) = slider(
+                            ui,
+                            self.state.ozone_column_du(),
+                            OZONE_DU_RANGE,
+                            "Ozone column",
+                            " DU",
+                            "Total ozone column in Dobson units (about 300 is typical)",
+                        ) {
+                            self.state.set_ozone_du(Some(v));
+                        }
+                        if ui
+                            .add_enabled(a.ozone_du.is_some(), egui::Button::new("Profile").small())
+                            .on_hover_text("Use the model profile's own column")
+                            .clicked()
+                        {
+                            self.state.set_ozone_du(None);
+                        }
+                    });
+                });
+                if let Some(v) = slider(
+                    ui,
+                    a.ground_albedo,
+                    (0.0, 1.0),
+                    "Ground albedo",
+                    "",
+                    "Fraction of light the (Lambertian) ground reflects: \
+             0.1 forest or sea, 0.3 average, 0.8 snow",
+                ) {
+                    self.state.set_ground_albedo(v);
+                }
+            });
+    }
+}
