@@ -10,7 +10,7 @@ use clap::{Args, Parser, Subcommand};
 use crate::atmosphere::Atmosphere;
 use crate::output::{self, OutputFormat};
 use crate::physics::standard_atmosphere;
-use crate::render::{service, MirrorAxis, Renderer};
+use crate::render::{integrator, service, MirrorAxis, Renderer};
 use crate::scene::{CameraKind, Scene, SceneError, MAX_ALTITUDE_M};
 
 /// Writes `text` to standard output. A reader that closed the pipe early
@@ -34,6 +34,26 @@ macro_rules! outln {
     ($($arg:tt)*) => {
         emit(&format!("{}\n", format_args!($($arg)*)))
     };
+}
+
+/// A note for a scene that sets the control variate on in haze its table
+/// cannot hold ([`integrator::control_table_holds`]): the setting is
+/// honoured, and the estimate stays unbiased, but there it adds noise (in
+/// the thickest haze by orders of magnitude, with negative pixels).
+fn control_variate_note(scene: &Scene) -> Option<String> {
+    let a = &scene.atmosphere;
+    (scene.render.integrator.control_variate == Some(true) && !integrator::control_table_holds(a))
+        .then(|| {
+            let (g_min, g_max) = integrator::CONTROL_AEROSOL_G;
+            format!(
+                "skyrender: note: control_variate = true in haze its table cannot hold \
+                 (aerosol optical depth {:.3} at 550 nm, g {}; left unset it is off past {} \
+                 or outside g {g_min} to {g_max}): expect far more noise, and negative pixels",
+                a.aerosol_optical_depth(550.0),
+                a.aerosol_g,
+                integrator::CONTROL_MAX_AEROSOL_DEPTH,
+            )
+        })
 }
 
 /// Physically based spectral sky renderer. Without a subcommand, opens the
@@ -456,6 +476,9 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let scene = args.build()?;
             check_output_path(&output)?;
             let pool = args.thread_pool()?;
+            if let Some(note) = control_variate_note(&scene) {
+                eprintln!("{note}");
+            }
             let ignored = args.ignored_camera_flags(scene.camera.kind);
             if !ignored.is_empty() {
                 eprintln!(
@@ -538,6 +561,9 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let samples = count("samples", samples, 1 << 30)?;
             let list = parse_wavelengths(wavelength, wavelengths.as_deref())?;
             let pool = args.thread_pool()?;
+            if let Some(note) = control_variate_note(&scene) {
+                eprintln!("{note}");
+            }
             let renderer = Renderer::new(&scene)?;
             let spectrum =
                 pool.install(|| renderer.probe_radiance(view_zenith, view_azimuth, &list, samples));
