@@ -50,6 +50,22 @@ impl Default for AtmosphereParams {
     }
 }
 
+impl AtmosphereParams {
+    /// Vertical aerosol optical depth from the ground to the top of the
+    /// atmosphere at `wavelength_nm` (0 without aerosols): the column of
+    /// [`Atmosphere::aerosol_extinction_per_m`], in closed form (Elterman's
+    /// profile is piecewise linear), without building an [`Atmosphere`].
+    pub fn aerosol_optical_depth(&self, wavelength_nm: f64) -> f64 {
+        if !self.aerosols {
+            return 0.0;
+        }
+        let profile = aerosol::Profile::get();
+        let column_340nm =
+            profile.optical_depth_340nm(0.0) - profile.optical_depth_340nm(self.top_altitude_m);
+        self.aerosol_amount * column_340nm * aerosol::SpectralFactor::get().at(wavelength_nm)
+    }
+}
+
 /// Optical properties of the atmosphere described by [`AtmosphereParams`].
 #[derive(Clone, Debug)]
 pub struct Atmosphere {
@@ -202,6 +218,32 @@ mod tests {
             ..AtmosphereParams::default()
         });
         assert_eq!(off.ozone_absorption_per_m(25_000.0, 600.0), 0.0);
+    }
+
+    #[test]
+    fn the_aerosol_column_in_closed_form_matches_the_numerical_one() {
+        for params in [
+            AtmosphereParams::default(),
+            AtmosphereParams {
+                aerosol_amount: 100.0,
+                top_altitude_m: 20_000.0,
+                ..AtmosphereParams::default()
+            },
+        ] {
+            let numerical = Atmosphere::new(params.clone())
+                .vertical_optical_depth(0.0, 550.0)
+                .aerosol;
+            let closed = params.aerosol_optical_depth(550.0);
+            assert!(
+                (closed / numerical - 1.0).abs() < 1e-5,
+                "{closed} {numerical}"
+            );
+        }
+        let none = AtmosphereParams {
+            aerosols: false,
+            ..AtmosphereParams::default()
+        };
+        assert_eq!(none.aerosol_optical_depth(550.0), 0.0);
     }
 
     #[test]

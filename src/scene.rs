@@ -737,10 +737,24 @@ mod tests {
         let scene = Scene::from_toml("[render.integrator]\ncontrol_variate = false\n").unwrap();
         assert_eq!(scene.render.integrator.control_variate, Some(false));
         let sunset = Scene::preset("sunset").unwrap();
-        let resolved = sunset.render.integrator.resolved(sunset.sun.elevation_deg);
+        let resolved = sunset
+            .render
+            .integrator
+            .resolved(sunset.sun.elevation_deg, &sunset.atmosphere);
         assert_eq!(resolved.control_variate, Some(true));
         let midday = Scene::preset("midday").unwrap();
-        let resolved = midday.render.integrator.resolved(midday.sun.elevation_deg);
+        let resolved = midday
+            .render
+            .integrator
+            .resolved(midday.sun.elevation_deg, &midday.atmosphere);
         assert_eq!(resolved.control_variate, Some(false));
+        // Nor in haze its table cannot hold, unless asked for.
+        let mut haze = sunset.clone();
+        haze.atmosphere.aerosol_amount = 100.0;
+        let resolved = haze.render.integrator.resolved(2.0, &haze.atmosphere);
+        assert_eq!(resolved.control_variate, Some(false));
+        haze.render.integrator.control_variate = Some(true);
+        let resolved = haze.render.integrator.resolved(2.0, &haze.atmosphere);
+        assert_eq!(resolved.control_variate, Some(true));
     }
 }

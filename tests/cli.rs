@@ -635,3 +635,45 @@ fn the_app_opens_a_scene_file_and_takes_a_screenshot() {
     let png = image::open(&shot).unwrap();
     assert!(png.width() > 0 && png.height() > 0);
 }
+
+#[test]
+fn the_control_variate_set_on_in_haze_its_table_cannot_hold_is_noted() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("x.exr");
+    let note = |control: &str| {
+        let scene = dir.path().join("haze.toml");
+        std::fs::write(
+            &scene,
+            format!(
+                "[sun]\nelevation_deg = 2.0\n[atmosphere]\naerosol_amount = 100.0\n\
+                 [render.integrator]\n{control}\n"
+            ),
+        )
+        .unwrap();
+        let run = skyrender(&[
+            "render",
+            "--scene",
+            scene.to_str().unwrap(),
+            "--width",
+            "4",
+            "--height",
+            "2",
+            "--spp",
+            "1",
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        assert!(run.status.success(), "{control}: {}", stderr(&run));
+        stderr(&run)
+            .lines()
+            .find(|l| l.contains("note:"))
+            .map(str::to_owned)
+    };
+    let set = note("control_variate = true").unwrap();
+    assert!(
+        set.contains("control_variate = true") && set.contains("optical depth 24.8"),
+        "{set}"
+    );
+    assert_eq!(note(""), None);
+    assert_eq!(note("control_variate = false"), None);
+}

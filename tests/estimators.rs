@@ -671,7 +671,7 @@ fn camera_importance_is_unbiased() {
         for order in [Some(2), None] {
             let options = IntegratorOptions {
                 max_scattering_order: order,
-                ..IntegratorOptions::default().resolved(sun_el)
+                ..IntegratorOptions::default().resolved(sun_el, &atmosphere.params)
             };
             let run = |camera: &CameraDensities, streams: u64| {
                 let integrator = Integrator::new(&medium, &options, sun_dir)
@@ -742,7 +742,7 @@ fn the_control_variate_is_unbiased() {
         );
         let controlled = IntegratorOptions {
             control_variate: Some(true),
-            ..IntegratorOptions::default().resolved(sun_el)
+            ..IntegratorOptions::default().resolved(sun_el, &atmosphere.params)
         };
         assert_eq!(controlled.max_scattering_order, None);
         let what = format!("sun {sun_el}°, view ({az}, {el}), all orders");
@@ -769,7 +769,7 @@ fn twilight_techniques_leave_the_mean_alone() {
     let sun_dir = direction_from_az_el(270.0, sun_el);
     let guide = Arc::new(SkyGuide::new(&medium, sun_dir));
     let plain = CameraDensities::new(&medium, origin, sun_dir);
-    let default = IntegratorOptions::default().resolved(sun_el);
+    let default = IntegratorOptions::default().resolved(sun_el, &atmosphere.params);
     assert!(default.camera_importance() > 0.0 && default.splitting == Some(true));
     let weighted = weighted_camera_densities(
         &medium,

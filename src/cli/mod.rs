@@ -11,7 +11,7 @@ mod render;
 use crate::atmosphere::Atmosphere;
 use crate::output::{self, OutputFormat};
 use crate::physics::standard_atmosphere;
-use crate::render::{OutOfMemory, Renderer};
+use crate::render::{integrator, OutOfMemory, Renderer};
 use crate::scene::{show_number, CameraKind, Scene, SceneError, MAX_ALTITUDE_M};
 
 /// Writes `text` to standard output. A reader that closed the pipe early
@@ -35,6 +35,26 @@ macro_rules! outln {
     ($($arg:tt)*) => {
         emit(&format!("{}\n", format_args!($($arg)*)))
     };
+}
+
+/// A note for a scene that sets the control variate on in haze its table
+/// cannot hold ([`integrator::control_table_holds`]): the setting is
+/// honoured, and the estimate stays unbiased, but there it adds noise (in
+/// the thickest haze by orders of magnitude, with negative pixels).
+fn control_variate_note(scene: &Scene) -> Option<String> {
+    let a = &scene.atmosphere;
+    (scene.render.integrator.control_variate == Some(true) && !integrator::control_table_holds(a))
+        .then(|| {
+            let (g_min, g_max) = integrator::CONTROL_AEROSOL_G;
+            format!(
+                "control_variate = true in haze its table cannot hold \
+                 (aerosol optical depth {:.3} at 550 nm, g {}; left unset it is off past {} \
+                 or outside g {g_min} to {g_max}): expect far more noise, and negative pixels",
+                a.aerosol_optical_depth(550.0),
+                a.aerosol_g,
+                integrator::CONTROL_MAX_AEROSOL_DEPTH,
+            )
+        })
 }
 
 /// Physically based spectral sky renderer. Without a subcommand, opens the
@@ -423,6 +443,7 @@ impl SceneArgs {
         if (self.lat.is_some() || self.lon.is_some()) && scene.sun.date_time.is_none() {
             notes.push("--lat/--lon place the Sun only with a date and time (--time, or --time-start for a timelapse)".into());
         }
+        notes.extend(control_variate_note(scene));
         if self.ozone_du.is_some() && !scene.atmosphere.ozone {
             notes.push("--ozone-du has no effect without ozone (--no-ozone, or `ozone = false` in the scene)".into());
         }

@@ -1026,7 +1026,8 @@ mod tests {
         // sampler alone.
         let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
         let sun = direction_from_az_el(30.0, -4.0);
-        let options = crate::render::IntegratorOptions::default().resolved(-4.0);
+        let options = crate::render::IntegratorOptions::default()
+            .resolved(-4.0, &AtmosphereParams::default());
         let guide = SkyGuide::new(&medium, sun);
         let integrator = Integrator::new(&medium, &options, sun).with_sky_guide(&guide);
         let camera = Camera::new(&crate::scene::CameraParams::default(), 64, 32);

@@ -71,13 +71,15 @@
 //! weights.
 //!
 //! **The once-scattered light as a control variate** (`control_variate`, on
-//! with the sun 0–3° above the horizon): at every real scattering the exact
-//! phase-function integral of a tabulated approximation A of the
-//! once-scattered light arriving there is added, and the path going on
-//! estimates only L − A ([`super::control`]). At sunset the aureole, cut
-//! by the bright horizon, gives the light a point sees a sharp structure
-//! that the sampled directions find unevenly; taken out, it leaves 0.67×
-//! the variance (`BENCHMARKS.md`, session 13).
+//! with the sun 0–3° above the horizon, unless the haze is thicker than
+//! aerosol optical depth 4 at 550 nm or its g lies outside −0.5 to 0.8,
+//! where the table cannot hold the light, [`control_table_holds`]): at
+//! every real scattering the exact phase-function integral of a tabulated
+//! approximation A of the once-scattered light arriving there is added,
+//! and the path going on estimates only L − A ([`super::control`]). At
+//! sunset the aureole, cut by the bright horizon, gives the light a point
+//! sees a sharp structure that the sampled directions find unevenly; taken
+//! out, it leaves 0.67× the variance (`BENCHMARKS.md`, session 13).
 //!
 //! **Multiply scattered light splatted along circles of symmetry**
 //! (`circle_splatting`, on with the sun below 10°): the camera's
@@ -111,6 +113,7 @@ use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDistribution};
 use super::trig::sin_cos_turns;
+use crate::atmosphere::AtmosphereParams;
 use crate::physics::{rayleigh, sun};
 use crate::rng::Rng;
 
@@ -232,7 +235,11 @@ pub struct IntegratorOptions {
     /// there, and the path going on estimates only L − A, which lacks A's
     /// sharp aureole and horizon. Unset (the default): on with the sun
     /// between [`CONTROL_ELEVATION_DEG`]'s bounds above the observer's
-    /// horizon (see [`Self::resolved`]), where it wins at equal time; an
+    /// horizon, where it wins at equal time, unless the haze is too thick
+    /// or its phase function too peaked for the table to hold the light
+    /// ([`control_table_holds`]: there it adds noise, in the thickest haze
+    /// by orders of magnitude); see [`Self::resolved`]. Set, it is
+    /// honoured (the CLI notes when it is set on in such haze). An
     /// integrator built directly reads unset as off.
     pub control_variate: Option<bool>,
     /// Multiply scattered light splatted along the scene's circles of
@@ -323,6 +330,53 @@ pub const CONTROL_SUN_LOBE: f64 = 0.0;
 /// 1.18–1.21× the time (0.5°: 0.69×, 2.9°: 0.62×); at −1°, 5° and 10°
 /// 0.85–0.87×, no more than it costs; at −4° and 45° nothing.
 pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
+/// Largest vertical aerosol optical depth at 550 nm
+/// ([`AtmosphereParams::aerosol_optical_depth`]) with
+/// [`IntegratorOptions::control_variate`] on by default. The table holds the
+/// once-scattered light at 12 altitudes and 8 wavelengths, and a point
+/// takes a neighbour's; half the aerosol column lies between the two lowest
+/// (174 m and 1.56 km: 0.12 of 0.249 at amount 1), so in thick haze the
+/// light it holds changes by orders of magnitude from one cell to the next
+/// (amount 100: 1.6 × 10⁻¹⁴, 2.9 × 10⁻⁹ and 1.1 × 10⁻⁶ per unit
+/// irradiance at 174 m, 1.56 km and 4.3 km), and deep in it the light is
+/// mostly scattered many times, which the table does not hold. Measured on
+/// the sunset scene (32 × 16, 8 passes, 10 seeds each way; median over
+/// pixels of the variance with the control over that without, which has to
+/// be below ~0.83 to pay for its 1.2× time): at g = 0.7 and optical depth
+/// 0.25 (the default haze) 0.88 (0.68–0.69 in longer runs, above); at 0.75,
+/// 2.5, 3.7, 4.0 and 5: 0.44–0.58; at 7.5: 0.58–0.73 (0.5°, 2°, 2.9°); at
+/// 8.7: 0.93–1.41; at 9.9: 1.29; at 12.4: 1.37–3.85; at 24.9 (amount 100,
+/// the range's top): 123, with negative pixels beyond their noise (g = 0:
+/// 283). At g = 0.8 it is lost sooner: 0.54–0.75 up to 4.0 (once 1.22), 1.15
+/// at 5, 1.50 at 7.5. A finer table does not rescue it: with 48 altitudes
+/// and 32 wavelengths, amount 100 at g = 0.7 stayed at 173 (48 altitudes
+/// alone took g = 0 from 283 to 4–7).
+pub const CONTROL_MAX_AEROSOL_DEPTH: f64 = 4.0;
+/// Aerosol asymmetry parameters g (from, to) with
+/// [`IntegratorOptions::control_variate`] on by default where there are
+/// aerosols. The expansion stops at degree [`super::control::L_MAX`] = 8,
+/// and a Henyey–Greenstein aureole keeps 1.2 % of its squared norm (Σ (2l+1)
+/// g^2l) beyond it at g = 0.7, 9 % at 0.8, 21 % at 0.85, 43 % at 0.9: the
+/// expansion rings about the sun and misses the peak, which the paths must
+/// then find without the sun lobe ([`CONTROL_SUN_LOBE`]). Measured as for
+/// [`CONTROL_MAX_AEROSOL_DEPTH`], at amount 1 (optical depth 0.25): g = 0.75
+/// 0.80, 0.8 0.66, 0.85 0.83, 0.9 1.20, 0.95 2.07, 0.99 2.15; at depth 2.5:
+/// 0.8 0.75, 0.85 1.05, 0.9 2.37, 0.99 932. Backscattering haze loses it in
+/// depth: at 3.7–4.0, g = −0.25 0.99, −0.5 0.88, −0.75 2.1, −0.8 3.9 (at
+/// 0.25, −0.75 0.72, −0.99 4.7).
+pub const CONTROL_AEROSOL_G: (f64, f64) = (-0.5, 0.8);
+
+/// Whether the control variate's table holds the once-scattered light well
+/// enough in `atmosphere`'s haze to pay for itself: an aerosol column no
+/// deeper than [`CONTROL_MAX_AEROSOL_DEPTH`] at 550 nm, and g within
+/// [`CONTROL_AEROSOL_G`] (or no aerosols).
+pub fn control_table_holds(atmosphere: &AtmosphereParams) -> bool {
+    let depth = atmosphere.aerosol_optical_depth(550.0);
+    depth == 0.0
+        || (depth <= CONTROL_MAX_AEROSOL_DEPTH
+            && (CONTROL_AEROSOL_G.0..=CONTROL_AEROSOL_G.1).contains(&atmosphere.aerosol_g))
+}
+
 /// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
 /// is on by default.
 pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
@@ -378,13 +432,15 @@ impl IntegratorOptions {
     }
 
     /// These options with every unset choice made for a scene whose sun
-    /// stands `sun_elevation_deg` above the observer's horizon.
+    /// stands `sun_elevation_deg` above the observer's horizon, in
+    /// `atmosphere`.
     #[must_use]
-    pub fn resolved(&self, sun_elevation_deg: f64) -> Self {
+    pub fn resolved(&self, sun_elevation_deg: f64, atmosphere: &AtmosphereParams) -> Self {
         let low_sun = sun_elevation_deg < LOW_SUN_ELEVATION_DEG;
         let high_sun = sun_elevation_deg > HIGH_SUN_ELEVATION_DEG;
         let control = self.control_variate.unwrap_or(
-            (CONTROL_ELEVATION_DEG.0..CONTROL_ELEVATION_DEG.1).contains(&sun_elevation_deg),
+            (CONTROL_ELEVATION_DEG.0..CONTROL_ELEVATION_DEG.1).contains(&sun_elevation_deg)
+                && control_table_holds(atmosphere),
         );
         Self {
             sunlight_samples: Some(self.sunlight_samples.unwrap_or(u32::from(low_sun))),
@@ -2039,6 +2095,7 @@ mod tests {
     #[test]
     fn unset_choices_follow_the_sun_and_set_ones_stay() {
         let auto = IntegratorOptions::default();
+        let haze = AtmosphereParams::default();
         assert_eq!(
             (
                 auto.sunlight_samples,
@@ -2073,7 +2130,7 @@ mod tests {
             (30.1, 0, HIGH_SUN_LOBE, false, false),
             (45.0, 0, HIGH_SUN_LOBE, false, false),
         ] {
-            let resolved = auto.resolved(elevation_deg);
+            let resolved = auto.resolved(elevation_deg, &haze);
             assert_eq!(
                 (
                     resolved.sunlight_samples,
@@ -2129,18 +2186,18 @@ mod tests {
                 circle_splatting: Some(!splitting),
                 ..IntegratorOptions::default()
             };
-            assert_eq!(options.resolved(-4.0), options);
-            assert_eq!(options.resolved(2.0), options);
-            assert_eq!(options.resolved(45.0), options);
+            assert_eq!(options.resolved(-4.0, &haze), options);
+            assert_eq!(options.resolved(2.0, &haze), options);
+            assert_eq!(options.resolved(45.0, &haze), options);
         }
         // An unset lobe follows the control variate as set, not the sun.
         let control = |on: bool| IntegratorOptions {
             control_variate: Some(on),
             ..IntegratorOptions::default()
         };
-        assert_eq!(control(false).resolved(2.0).sun_lobe, Some(SUN_LOBE));
+        assert_eq!(control(false).resolved(2.0, &haze).sun_lobe, Some(SUN_LOBE));
         assert_eq!(
-            control(true).resolved(45.0).sun_lobe,
+            control(true).resolved(45.0, &haze).sun_lobe,
             Some(CONTROL_SUN_LOBE)
         );
         // Unset splitting follows roulette: without it, none below the horizon.
@@ -2148,7 +2205,60 @@ mod tests {
             russian_roulette: false,
             ..IntegratorOptions::default()
         };
-        assert_eq!(no_roulette.resolved(-4.0).splitting, Some(false));
+        assert_eq!(no_roulette.resolved(-4.0, &haze).splitting, Some(false));
+    }
+
+    #[test]
+    fn the_control_variate_stays_off_where_its_table_cannot_hold_the_haze() {
+        // At sunset, unset: on in the default haze and at the limits, off
+        // past them (with the sun lobe of no control), on again without
+        // aerosols whatever their g; set, honoured.
+        let haze = |amount: f64, g: f64| AtmosphereParams {
+            aerosol_amount: amount,
+            aerosol_g: g,
+            ..AtmosphereParams::default()
+        };
+        let per_amount = AtmosphereParams::default().aerosol_optical_depth(550.0);
+        let deepest = CONTROL_MAX_AEROSOL_DEPTH / per_amount;
+        let (g_min, g_max) = CONTROL_AEROSOL_G;
+        for (atmosphere, on) in [
+            (haze(1.0, 0.7), true),
+            (haze(deepest * 0.999, 0.7), true),
+            (haze(deepest * 1.001, 0.7), false),
+            (haze(100.0, 0.7), false),
+            (haze(100.0, 0.99), false),
+            (haze(1.0, g_max), true),
+            (haze(1.0, g_max + 0.01), false),
+            (haze(1.0, 0.99), false),
+            (haze(1.0, g_min), true),
+            (haze(1.0, g_min - 0.01), false),
+            (haze(1.0, -0.99), false),
+            (haze(0.0, 0.99), true),
+            (
+                AtmosphereParams {
+                    aerosols: false,
+                    ..haze(100.0, 0.99)
+                },
+                true,
+            ),
+        ] {
+            let what = format!("{} {}", atmosphere.aerosol_amount, atmosphere.aerosol_g);
+            assert_eq!(control_table_holds(&atmosphere), on, "{what}");
+            let resolved = IntegratorOptions::default().resolved(2.0, &atmosphere);
+            assert_eq!(resolved.control_variate, Some(on), "{what}");
+            let lobe = if on { CONTROL_SUN_LOBE } else { SUN_LOBE };
+            assert_eq!(resolved.sun_lobe, Some(lobe), "{what}");
+            for set in [false, true] {
+                let options = IntegratorOptions {
+                    control_variate: Some(set),
+                    ..IntegratorOptions::default()
+                };
+                let resolved = options.resolved(2.0, &atmosphere);
+                assert_eq!(resolved.control_variate, Some(set), "{what}");
+            }
+        }
+        // The default haze: aerosol optical depth 0.249 at 550 nm, g 0.7.
+        assert!((per_amount - 0.249).abs() < 0.001, "{per_amount}");
     }
 
     #[test]

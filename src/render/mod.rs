@@ -237,7 +237,10 @@ impl Renderer {
             scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
         );
         let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
-        let mut options = scene.render.integrator.resolved(scene.sun.elevation_deg);
+        let mut options = scene
+            .render
+            .integrator
+            .resolved(scene.sun.elevation_deg, &scene.atmosphere);
         // Without circles (the sun at the zenith or nadir), or from above
         // the air (where the scene refuses it when asked for), the camera's
         // branches keep every order.
