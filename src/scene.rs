@@ -687,11 +687,14 @@ mod tests {
         for (toml, want) in [
             (
                 "[camera]\nkind = \"ortho\"",
-                "line 2, column 8: unknown variant `ortho`, expected one of `perspective`, `equirect`, `fisheye`",
+                "line 2, column 8: `camera.kind`: unknown variant `ortho`, expected one of `perspective`, `equirect`, `fisheye`",
             ),
-            ("[sun]\nelevatoin_deg = 3", "line 2, column 1: unknown field `elevatoin_deg`"),
-            ("[render]\nspp = -3", "line 2, column 7:"),
-            ("[sun]\nelevation_deg = \"x\"", "line 2, column 17:"),
+            (
+                "[sun]\nelevatoin_deg = 3",
+                "line 2, column 1: `sun.elevatoin_deg`: unknown field `elevatoin_deg`",
+            ),
+            ("[render]\nspp = -3", "line 2, column 7: `render.spp`:"),
+            ("[sun]\nelevation_deg = \"x\"", "line 2, column 17: `sun.elevation_deg`:"),
         ] {
             let e = Scene::from_toml(toml).unwrap_err();
             assert_eq!(e.parameter, "scene");
