@@ -212,6 +212,29 @@ pub struct Scene {
     pub camera: CameraParams,
     pub atmosphere: AtmosphereParams,
     pub render: RenderParams,
+    /// What an EXR holds besides the RGB image (`[output]`).
+    #[serde(skip_serializing_if = "OutputParams::is_plain")]
+    pub output: OutputParams,
+}
+
+/// What a render's EXR holds besides its RGB image: compositing layers and
+/// a spectral image. Unset, a plain RGB file, as before.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct OutputParams {
+    /// Extra layers by name (see `crate::render::layers`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub layers: Vec<String>,
+    /// A spectral image in this many bands over 360–830 nm; unset: none.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spectral_bands: Option<u32>,
+}
+
+impl OutputParams {
+    /// Whether the output is the RGB image alone.
+    pub fn is_plain(&self) -> bool {
+        self.layers.is_empty() && self.spectral_bands.is_none()
+    }
 }
 
 /// An invalid parameter.
