@@ -62,6 +62,24 @@ pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<
     ]
 }
 
+/// Everything a rendered image's header carries: [`exr_metadata`], the
+/// lighting ([`crate::lighting::metadata`]) and, for an equirect map, the
+/// standard `envmap` attribute (`latlong`).
+pub fn image_metadata(
+    scene: &Scene,
+    image: &output::RgbImage,
+    spp: u32,
+    paths: u64,
+    discarded: u64,
+) -> Vec<(String, String)> {
+    let mut metadata = exr_metadata(scene, spp, paths, discarded);
+    metadata.extend(crate::lighting::metadata(scene, image));
+    if scene.camera.kind == crate::scene::CameraKind::Equirect {
+        metadata.push(("envmap".into(), "latlong".into()));
+    }
+    metadata
+}
+
 /// Render `scene` and write it to `path` (EXR or PNG), atomically.
 pub fn render_to_file(
     scene: &Scene,
@@ -78,7 +96,7 @@ pub fn render_to_file(
     output::write_image(
         path,
         &image,
-        &exr_metadata(scene, total, paths, film.discarded),
+        &image_metadata(scene, &image, total, paths, film.discarded),
         scene.render.exposure_ev.map(|v| v as f32),
     )?;
     Ok((total, paths, film.discarded))
@@ -267,7 +285,7 @@ pub fn merge_parts(paths: &[PathBuf], output: &Path) -> Result<Scene, String> {
     output::write_image(
         output,
         &image,
-        &exr_metadata(&scene, spp, total_paths, film.discarded),
+        &image_metadata(&scene, &image, spp, total_paths, film.discarded),
         scene.render.exposure_ev.map(|v| v as f32),
     )
     .map_err(|e| e.to_string())?;

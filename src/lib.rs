@@ -31,6 +31,7 @@ pub mod bench;
 pub mod cli;
 pub mod data;
 pub mod export;
+pub mod lighting;
 pub mod output;
 pub mod physics;
 pub mod render;

@@ -284,8 +284,13 @@ pub fn save_view(
 ) -> Result<(), String> {
     match OutputFormat::from_path(path).map_err(|e| e.to_string())? {
         OutputFormat::Exr => {
-            let metadata =
-                crate::export::exr_metadata(scene, frame.spp, frame.paths, frame.discarded);
+            let metadata = crate::export::image_metadata(
+                scene,
+                &frame.image,
+                frame.spp,
+                frame.paths,
+                frame.discarded,
+            );
             output::write_image(path, &frame.image, &metadata, None).map_err(|e| e.to_string())
         }
         OutputFormat::Png => {

@@ -15,7 +15,9 @@
 //! - the standard `whiteLuminance` attribute set to 1.0, i.e. the RGB value (1, 1, 1) has a
 //!   luminance of 1 cd/m², so pixel values are absolute photometric quantities;
 //! - `software` = `skyrender <version>`;
-//! - every metadata pair `(key, value)` as a custom `string` attribute named `key`
+//! - the pair `("envmap", "latlong")` (or `"cube"`) as the standard `envmap` attribute, which
+//!   tells other tools the image is an environment map;
+//! - every other metadata pair `(key, value)` as a custom `string` attribute named `key`
 //!   (e.g. `skyrender:scene` holding the scene TOML, `skyrender:spp` holding `"64"`). EXR
 //!   strings are byte strings; values are stored as their UTF-8 bytes. (The `exr` crate's
 //!   `Text: Display` decodes bytes as Latin-1, so decode `Text::bytes()` as UTF-8 when reading.)
@@ -64,7 +66,7 @@ use std::fs::File;
 use std::io::{self, BufRead, BufWriter, Read, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 
-use exr::meta::attribute::Chromaticities;
+use exr::meta::attribute::{Chromaticities, EnvironmentMap};
 use exr::prelude::{
     AttributeValue, Encoding, Image as ExrImage, Layer, LayerAttributes, SpecificChannels, Text,
     Vec2, WritableImage,
@@ -269,10 +271,20 @@ fn exr_layer_attributes(
                 reason,
             });
         }
-        layer_attributes.other.insert(
-            Text::from_slice_unchecked(key.as_bytes()),
-            AttributeValue::Text(Text::from_slice_unchecked(value.as_bytes())),
-        );
+        // The standard `envmap` attribute is an enum, not text: a
+        // lat-long map is how other tools know an equirect panorama.
+        match (key.as_str(), value.as_str()) {
+            ("envmap", "latlong") => {
+                layer_attributes.environment_map = Some(EnvironmentMap::LatitudeLongitude);
+            }
+            ("envmap", "cube") => layer_attributes.environment_map = Some(EnvironmentMap::Cube),
+            _ => {
+                layer_attributes.other.insert(
+                    Text::from_slice_unchecked(key.as_bytes()),
+                    AttributeValue::Text(Text::from_slice_unchecked(value.as_bytes())),
+                );
+            }
+        }
     }
     Ok(layer_attributes)
 }
