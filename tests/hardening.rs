@@ -1,38 +1,14 @@
 //! The command line under stress: interrupted writes, memory limits,
 //! unbounded input, and the messages a newcomer meets first.
 
+mod common;
+
+use common::{assert_one_line_error, skyrender, stderr};
+
 use std::io::Write as _;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
+use std::process::{Command, Stdio};
 use std::time::{Duration, Instant};
-
-fn skyrender(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyrender"))
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("run skyrender")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
-
-/// A failing run with exit code 2 and one line on standard error that
-/// contains every one of `needles` (case-insensitive).
-fn assert_one_line_error(out: &Output, needles: &[&str]) -> String {
-    let err = stderr(out);
-    assert_eq!(out.status.code(), Some(2), "{err}");
-    assert_eq!(err.trim().lines().count(), 1, "not one line: {err}");
-    for needle in needles {
-        assert!(
-            err.to_lowercase().contains(&needle.to_lowercase()),
-            "'{err}' lacks '{needle}'"
-        );
-    }
-    err
-}
 
 /// Names in `dir`, sorted.
 fn listing(dir: &Path) -> Vec<String> {

@@ -1,20 +1,10 @@
 //! Time and place: the Sun from a date, and timelapses of a whole day.
 
+mod common;
+
+use common::{skyrender, stderr};
+
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn skyrender(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyrender"))
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("run skyrender")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// The scene an EXR embeds, and its mean luminance (cd/m²).
 fn read_exr(path: &Path) -> (skyrender::Scene, f64) {

@@ -2,17 +2,11 @@
 //! `skyrender merge`: the single render's image where the technique allows
 //! it, statistically the same image otherwise; bad sets of parts refused.
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+mod common;
 
-fn skyrender(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyrender"))
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("run skyrender")
-}
+use common::skyrender;
+
+use std::path::{Path, PathBuf};
 
 fn run_ok(args: &[&str]) {
     let out = skyrender(args);
