@@ -87,12 +87,27 @@ pub fn render_to_file(
     cancel: &AtomicBool,
     mut progress: impl FnMut(u32, u32),
 ) -> Result<(u32, u64, u64), ExportError> {
+    check_spectral_output(scene, path)?;
     let renderer = Renderer::new(scene)?;
     let total = scene.render.spp;
     let (film, paths) =
         service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
             .ok_or(ExportError::Cancelled)?;
     let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
+    let spectral = film
+        .try_spectral_planes()
+        .map_err(|_| renderer.out_of_memory())?;
+    if let Some(planes) = spectral {
+        let centres = crate::render::film_spectral::band_centres_nm(planes.len());
+        output::spectral::write_spectral_exr(
+            path,
+            &image,
+            &centres,
+            planes,
+            &exr_metadata(scene, total, paths, film.discarded),
+        )?;
+        return Ok((total, paths, film.discarded));
+    }
     output::write_image(
         path,
         &image,
@@ -100,6 +115,29 @@ pub fn render_to_file(
         scene.render.exposure_ev.map(|v| v as f32),
     )?;
     Ok((total, paths, film.discarded))
+}
+
+/// Checks that `scene`'s spectral image, if it asks for one, can be
+/// written to `path`: an EXR (a PNG holds no spectra), bands in range.
+pub fn check_spectral_output(scene: &Scene, path: &Path) -> Result<(), ExportError> {
+    if scene.output.spectral_bands.is_none() {
+        return Ok(());
+    }
+    scene.output.validate_spectral()?;
+    if !matches!(
+        output::OutputFormat::from_path(path)?,
+        output::OutputFormat::Exr
+    ) {
+        return Err(SceneError::new(
+            "output",
+            format!(
+                "'{}': a spectral image needs an EXR file (a PNG holds only RGB)",
+                path.display()
+            ),
+        )
+        .into());
+    }
+    Ok(())
 }
 
 /// The version of the part files [`render_part_to_file`] writes.
@@ -120,6 +158,13 @@ pub fn render_part_to_file(
     cancel: &AtomicBool,
     progress: impl FnMut(u32, &crate::render::Film),
 ) -> Result<u64, ExportError> {
+    if scene.output.spectral_bands.is_some() {
+        return Err(SceneError::new(
+            "output",
+            "a part of a split render holds no spectral image (render it whole)",
+        )
+        .into());
+    }
     let renderer = Renderer::new(scene)?;
     let (film, paths) = service::render_part_blocking(&renderer, passes, tile, cancel, progress)?
         .ok_or(ExportError::Cancelled)?;

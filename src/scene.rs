@@ -230,10 +230,29 @@ pub struct OutputParams {
     pub spectral_bands: Option<u32>,
 }
 
+/// The most bands of a spectral image: 1 nm each over 360–830 nm. Finer
+/// bands than the colour-matching tables' 1–5 nm steps resolve nothing
+/// and would each catch too few wavelength samples to be more than noise.
+pub const MAX_SPECTRAL_BANDS: u32 = 470;
+
 impl OutputParams {
     /// Whether the output is the RGB image alone.
     pub fn is_plain(&self) -> bool {
         self.layers.is_empty() && self.spectral_bands.is_none()
+    }
+
+    /// Checks `spectral_bands`: 1 to [`MAX_SPECTRAL_BANDS`].
+    pub fn validate_spectral(&self) -> Result<(), SceneError> {
+        match self.spectral_bands {
+            Some(n) if !(1..=MAX_SPECTRAL_BANDS).contains(&n) => Err(SceneError::new(
+                "output.spectral_bands",
+                format!(
+                    "{n} bands: must be 1 to {MAX_SPECTRAL_BANDS} (360–830 nm in bands \
+                     of at least 1 nm)"
+                ),
+            )),
+            _ => Ok(()),
+        }
     }
 }
 
@@ -502,6 +521,7 @@ impl Scene {
 
     /// Check every parameter; the error names the first invalid one and its range.
     pub fn validate(&self) -> Result<(), SceneError> {
+        self.output.validate_spectral()?;
         check_range("sun elevation (deg)", self.sun.elevation_deg, -90.0, 90.0)?;
         check_range("sun azimuth (deg)", self.sun.azimuth_deg, -360.0, 720.0)?;
         if let Some(d) = self.sun.distance_au {

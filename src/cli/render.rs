@@ -43,6 +43,48 @@ pub struct SequenceArgs {
     pub resume: bool,
 }
 
+/// A spectral image alongside the RGB one (`[output] spectral_bands`).
+#[derive(Args, Debug, Default, Clone)]
+pub struct SpectralArgs {
+    /// Also write the spectral image, band-averaged spectral radiance in
+    /// W m⁻² sr⁻¹ nm⁻¹ over 360–830 nm, as `S0.<nm>` channels of the EXR
+    /// (JCGT spectral layout; EXR only) [default: off, or the scene's
+    /// `[output] spectral_bands`].
+    #[arg(long)]
+    pub spectral: bool,
+    /// The spectral image's bands over 360–830 nm, 1 to 470 (47: 10 nm
+    /// each) [default: 47].
+    #[arg(
+        long,
+        allow_negative_numbers = true,
+        value_name = "N",
+        requires = "spectral"
+    )]
+    pub bands: Option<i64>,
+}
+
+impl SpectralArgs {
+    /// Sets `scene`'s spectral bands from the flags and checks them.
+    fn apply(&self, scene: &mut Scene) -> Result<(), SceneError> {
+        if self.spectral {
+            let bands = self.bands.unwrap_or(i64::from(
+                crate::render::film_spectral::DEFAULT_SPECTRAL_BANDS,
+            ));
+            let bands = u32::try_from(bands).map_err(|_| {
+                SceneError::new(
+                    "bands",
+                    format!(
+                        "{bands} is outside the valid range 1 to {}",
+                        crate::scene::MAX_SPECTRAL_BANDS
+                    ),
+                )
+            })?;
+            scene.output.spectral_bands = Some(bands);
+        }
+        scene.output.validate_spectral()
+    }
+}
+
 /// One part of a render split across processes or machines, merged later
 /// by `skyrender merge`.
 #[derive(Args, Debug, Default, Clone)]
@@ -220,14 +262,17 @@ pub fn run(
     output: &Path,
     sequence: &SequenceArgs,
     split: &SplitArgs,
+    spectral: &SpectralArgs,
 ) -> Result<(), CliError> {
-    let base = args.build()?;
+    let mut base = args.build()?;
+    spectral.apply(&mut base)?;
     if let Some(part) = split.part(&base)? {
         return run_part(args, &base, part, output, sequence.resume);
     }
     let mut jobs = jobs(&base, output, sequence)?;
     for job in &jobs {
         check_output_path(&job.path)?;
+        export::check_spectral_output(&job.scene, &job.path)?;
     }
     if sequence.resume {
         let before = jobs.len();

@@ -60,6 +60,7 @@
 
 pub mod atomic;
 pub mod channels;
+pub mod spectral;
 
 use std::collections::HashSet;
 use std::fs::File;

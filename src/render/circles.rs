@@ -134,6 +134,10 @@ pub struct Splat {
     pub pixel: u32,
     /// XYZ (Y in cd m⁻²) times the number of paths it is averaged over.
     pub xyz: [f64; 3],
+    /// The same light by wavelength lane, for a spectral film: the lanes'
+    /// radiance (W m⁻² sr⁻¹ nm⁻¹) times the splat's weight; the renderer
+    /// divides by the lanes' densities ([`super::Renderer`]'s splat pass).
+    pub lanes: super::film_spectral::SplatLanes,
 }
 
 /// The frame of the scene's symmetry: the sun's axis through the Earth's
@@ -837,16 +841,20 @@ impl CircleSplatter {
                 }
             }
             let mut xyz = [0.0; 3];
+            let mut spectral = super::film_spectral::SplatLanes::default();
             for j in 0..lanes.active {
                 let l = tr[j] * in_scattered[j] * weight;
                 for (v, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
                     *v += l * bar;
                 }
+                spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j] as f32;
+                spectral.values[j] = l as f32;
             }
             if xyz.iter().all(|v| v.is_finite()) {
                 out.push(Splat {
                     pixel: (py as u32) * width as u32 + px as u32,
                     xyz,
+                    lanes: spectral,
                 });
             } else {
                 discarded += 1;

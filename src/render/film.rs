@@ -149,6 +149,9 @@ pub struct Film {
     /// Each pixel's total weight where it is not a function of its row
     /// (a film merged from parts); empty otherwise.
     pub(crate) pixel_weights: Vec<f64>,
+    /// The spectral layer, where a spectral image is asked for
+    /// ([`super::film_spectral`]).
+    pub(crate) spectral: Option<super::film_spectral::SpectralFilm>,
 }
 
 /// `n` copies of `value`, or an error where the memory is not there (not
@@ -188,6 +191,7 @@ impl Film {
             first_pass: 0,
             region: None,
             pixel_weights: Vec::new(),
+            spectral: None,
         })
     }
 
@@ -206,6 +210,10 @@ impl Film {
             + size_of_val(self.plan.as_slice())
             + size_of_val(self.row_planned_passes.as_slice())
             + size_of_val(self.splat_sum.as_slice())
+            + self
+                .spectral
+                .as_ref()
+                .map_or(0, super::film_spectral::SpectralFilm::buffer_bytes)
     }
 
     /// Whether the film has a splat layer.
@@ -222,6 +230,9 @@ impl Film {
             }
         }
         self.splat_paths += paths;
+        if let Some(spectral) = &mut self.spectral {
+            spectral.add_splats(splats);
+        }
     }
 
     /// The film reading each pixel together with its image under `mirror`
@@ -548,6 +559,7 @@ mod tests {
             &[super::super::circles::Splat {
                 pixel: 0,
                 xyz: [4.0; 3],
+                lanes: super::super::film_spectral::SplatLanes::default(),
             }],
             2,
         );

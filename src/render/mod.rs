@@ -14,6 +14,7 @@ pub mod columns;
 pub mod control;
 pub mod directions;
 pub mod film;
+pub mod film_spectral;
 pub mod guide;
 pub mod integrator;
 pub mod medium;
@@ -46,6 +47,7 @@ use crate::rng::{mix64, Rng, SOBOL_POINTS};
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
 use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
+use film_spectral::SampleLanes;
 use sunlight::CameraDensities;
 
 /// A render's buffers could not be allocated.
@@ -341,10 +343,16 @@ impl Renderer {
         let film = Film::try_new(self.scene.render.width, self.scene.render.height)
             .map_err(|_| self.out_of_memory())?
             .with_mirror(self.mirror);
-        if self.splatting {
-            film.try_with_splats().map_err(|_| self.out_of_memory())
+        let film = if self.splatting {
+            film.try_with_splats().map_err(|_| self.out_of_memory())?
         } else {
-            Ok(film)
+            film
+        };
+        match self.scene.output.spectral_bands {
+            Some(bands) => film
+                .try_with_spectral(bands)
+                .map_err(|_| self.out_of_memory()),
+            None => Ok(film),
         }
     }
 
@@ -354,13 +362,18 @@ impl Renderer {
     /// larger of the adaptive plan's working arrays (a pixel index, the
     /// luminance, its spread, a bin and the plan: 19 bytes) and the output
     /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3). The tables the
-    /// integrator reads do not grow with the image and are left out.
+    /// integrator reads do not grow with the image and are left out. A
+    /// spectral image adds its sums and planes
+    /// ([`film_spectral::spectral_bytes_per_pixel`]).
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
         let film = 12 + if self.splatting { 12 } else { 0 } + 1;
         let planning = 8 + 4 + 4 + 2 + 1;
         let output = 12 + 3;
-        pixels * (film + planning.max(output))
+        let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {
+            film_spectral::spectral_bytes_per_pixel(bands, self.splatting)
+        });
+        pixels * (film + planning.max(output) + spectral)
     }
 
     /// Checks, before any work, that [`Self::memory_needed_bytes`] can be
@@ -493,6 +506,19 @@ impl Renderer {
         y: u32,
         sample: u64,
     ) -> Option<[f64; 3]> {
+        self.sample_pixel_lanes(integrator, x, y, sample)
+            .map(|(xyz, _)| xyz)
+    }
+
+    /// [`Self::sample_pixel`] with the sample's wavelength lanes, for the
+    /// spectral layer ([`film_spectral`]).
+    fn sample_pixel_lanes(
+        &self,
+        integrator: &Integrator<'_>,
+        x: u32,
+        y: u32,
+        sample: u64,
+    ) -> Option<([f64; 3], SampleLanes)> {
         let width = self.scene.render.width;
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);
         let seed = self.scene.render.seed;
@@ -524,7 +550,7 @@ impl Renderer {
                 v
             };
         let Some(dir) = self.camera.direction(px, py) else {
-            return Some([0.0; 3]);
+            return Some(([0.0; 3], SampleLanes::default()));
         };
         // Across the passes of one pixel, u₀ follows the golden-ratio additive
         // recurrence from a random per-pixel start (a Cranley–Patterson rotated
@@ -538,17 +564,23 @@ impl Renderer {
         let radiance = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
         let n = lanes.active;
         let mut xyz = [0.0; 3];
+        let mut spectral = SampleLanes {
+            active: n,
+            ..SampleLanes::default()
+        };
         for j in 0..n {
             let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
             let w = K_M * radiance[j] / (pdfs[j] * n as f64);
             for c in 0..3 {
                 xyz[c] += w * bar[c];
             }
+            spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j];
+            spectral.values[j] = radiance[j] / (pdfs[j] * n as f64);
         }
         let signed = integrator.signed_estimates();
         xyz.iter()
             .all(|v| v.is_finite() && (signed || *v >= 0.0))
-            .then_some(xyz)
+            .then_some((xyz, spectral))
     }
 
     /// Add pass number `pass` to `film`: one sample per pixel, or, once the
@@ -605,6 +637,21 @@ impl Renderer {
         // of the pass, as in a single render.
         let apart = film.first_pass > 0 && self.scene.render.adaptive_sampling;
         let per_pass = u64::from(film::MAX_SAMPLES_PER_PASS);
+        // The spectral layer's rows (empty without one), one lock each so
+        // the rows' closure below keeps its shape.
+        let bands = film.spectral.as_ref().map_or(0, |s| s.bands);
+        let spectral_rows: Vec<std::sync::Mutex<&mut [f32]>> = match &mut film.spectral {
+            Some(s) => s
+                .rows
+                .iter_mut()
+                .map(|r| std::sync::Mutex::new(r.as_mut_slice()))
+                .collect(),
+            None => film
+                .row_passes
+                .iter()
+                .map(|_| std::sync::Mutex::new(&mut [][..]))
+                .collect(),
+        };
         film.xyz_sum
             .par_chunks_mut(width)
             .zip(film.row_passes.par_iter_mut())
@@ -619,7 +666,16 @@ impl Renderer {
                 if cancelled() || *passes != pass {
                     return;
                 }
+                // Each row's lock is taken by the one thread that renders
+                // the row: never contended.
+                let mut spectral = spectral_rows[y]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
                 if splats {
+                    // As `Film::drop_draft` drops the row's XYZ.
+                    if *passes == 1 {
+                        spectral.fill(0.0);
+                    }
                     Film::drop_draft(row, *passes, row_weight);
                 }
                 let mut row_paths = 0;
@@ -650,10 +706,13 @@ impl Renderer {
                         _ => &integrator,
                     };
                     for sample in first..first + count {
-                        match self.sample_pixel(integrator, x as u32, y as u32, sample) {
-                            Some(xyz) => {
+                        match self.sample_pixel_lanes(integrator, x as u32, y as u32, sample) {
+                            Some((xyz, lanes)) => {
                                 for c in 0..3 {
                                     sum[c] += (weight * xyz[c]) as f32;
+                                }
+                                if bands > 0 {
+                                    lanes.add_to(&mut spectral[x * bands..(x + 1) * bands], weight);
                                 }
                             }
                             None => {
@@ -756,6 +815,7 @@ impl Renderer {
                             let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
                             bar.map(|b| K_M * b / (pdfs[j] * n as f64))
                         });
+                        let before = splats.len();
                         let walked = splatter.walk(
                             integrator,
                             &self.camera,
@@ -765,6 +825,13 @@ impl Renderer {
                             &mut rng,
                             &mut splats,
                         );
+                        // The splats' lanes over their densities, as the
+                        // XYZ weights divide (for the spectral layer).
+                        for s in &mut splats[before..] {
+                            for (v, p) in s.lanes.values.iter_mut().zip(pdfs).take(n) {
+                                *v = (f64::from(*v) / (p * n as f64)) as f32;
+                            }
+                        }
                         discarded += walked.discarded;
                         moments.extend(walked.moment);
                     }
