@@ -70,11 +70,38 @@ pub fn render_to_file(
     mut progress: impl FnMut(u32, u32),
 ) -> Result<(u32, u64, u64), ExportError> {
     let renderer = Renderer::new(scene)?;
+    let layers = &scene.output.layers;
+    if !layers.is_empty()
+        && !matches!(
+            output::OutputFormat::from_path(path)?,
+            output::OutputFormat::Exr
+        )
+    {
+        return Err(SceneError::new(
+            "output",
+            format!(
+                "'{}': layers ({}) need an EXR file, not a PNG",
+                path.display(),
+                layers.join(", ")
+            ),
+        )
+        .into());
+    }
     let total = scene.render.spp;
     let (film, paths) =
         service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
             .ok_or(ExportError::Cancelled)?;
     let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
+    if !layers.is_empty() {
+        write_layered_exr(
+            scene,
+            &renderer,
+            path,
+            &image,
+            exr_metadata(scene, total, paths, film.discarded),
+        )?;
+        return Ok((total, paths, film.discarded));
+    }
     output::write_image(
         path,
         &image,
@@ -82,6 +109,45 @@ pub fn render_to_file(
         scene.render.exposure_ev.map(|v| v as f32),
     )?;
     Ok((total, paths, film.discarded))
+}
+
+/// Writes `image` (`R`, `G`, `B`) and the channels of the scene's layers
+/// ([`crate::render::layers`]) into one EXR at `path`, atomically, with the
+/// render's `metadata` and the layers' names (`skyrender:layers`).
+fn write_layered_exr(
+    scene: &Scene,
+    renderer: &Renderer,
+    path: &Path,
+    image: &output::RgbImage,
+    mut metadata: Vec<(String, String)>,
+) -> Result<(), ExportError> {
+    // Each layer once, in the order asked for.
+    let mut layers: Vec<String> = Vec::new();
+    for layer in &scene.output.layers {
+        if !layers.contains(layer) {
+            layers.push(layer.clone());
+        }
+    }
+    let mut channels: Vec<(String, Vec<f32>)> = ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            (
+                (*name).to_owned(),
+                image.pixels.iter().map(|p| p[c]).collect(),
+            )
+        })
+        .collect();
+    channels.extend(renderer.layer_channels(&layers));
+    metadata.push(("skyrender:layers".into(), layers.join(",")));
+    output::channels::write_exr_channels(
+        path,
+        image.width as usize,
+        image.height as usize,
+        channels,
+        &metadata,
+    )?;
+    Ok(())
 }
 
 /// The version of the part files [`render_part_to_file`] writes.

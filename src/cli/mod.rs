@@ -98,6 +98,8 @@ pub enum Command {
         sequence: render::SequenceArgs,
         #[command(flatten)]
         split: render::SplitArgs,
+        #[command(flatten)]
+        layers: render::LayerArgs,
         /// Output file, .exr or .png; for a timelapse, a name with a run of
         /// `#` for the frame number (sky_####.exr).
         #[arg(short, long, value_name = "OUT.exr|OUT.png")]
@@ -577,7 +579,8 @@ pub fn run(command: Command) -> Result<(), CliError> {
             output,
             sequence,
             split,
-        } => render::run(&args, &output, &sequence, &split),
+            layers,
+        } => render::run(&args, &output, &sequence, &split, &layers),
         Command::Merge { parts, output } => {
             check_output_path(&output)?;
             let start = Instant::now();

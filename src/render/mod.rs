@@ -16,6 +16,7 @@ pub mod directions;
 pub mod film;
 pub mod guide;
 pub mod integrator;
+pub mod layers;
 pub mod medium;
 pub mod parts;
 pub mod service;
@@ -353,14 +354,16 @@ impl Renderer {
     /// where the renderer splats; the adaptive plan's byte) and, on top, the
     /// larger of the adaptive plan's working arrays (a pixel index, the
     /// luminance, its spread, a bin and the plan: 19 bytes) and the output
-    /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3). The tables the
+    /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3), plus the
+    /// layers' planes where the output has layers
+    /// ([`Self::layer_bytes_per_pixel`]). The tables the
     /// integrator reads do not grow with the image and are left out.
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
         let film = 12 + if self.splatting { 12 } else { 0 } + 1;
         let planning = 8 + 4 + 4 + 2 + 1;
         let output = 12 + 3;
-        pixels * (film + planning.max(output))
+        pixels * (film + planning.max(output) + self.layer_bytes_per_pixel())
     }
 
     /// Checks, before any work, that [`Self::memory_needed_bytes`] can be
