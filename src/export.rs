@@ -140,7 +140,7 @@ fn write_layered_exr(
         .collect();
     channels.extend(renderer.layer_channels(&layers));
     metadata.push(("skyrender:layers".into(), layers.join(",")));
-    output::channels::write_exr_channels(
+    output::channels::write_exr_image_channels(
         path,
         image.width as usize,
         image.height as usize,

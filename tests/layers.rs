@@ -63,6 +63,7 @@ fn all_layers_are_written_beside_the_image() {
     let header = Command::new("exrheader").arg(&path).output().unwrap();
     assert!(header.status.success());
     let text = String::from_utf8_lossy(&header.stdout);
+    assert!(text.contains("chromaticities"), "{text}");
     for name in ALL {
         assert!(
             text.lines()
