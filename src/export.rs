@@ -89,6 +89,30 @@ pub fn render_to_file(
 ) -> Result<(u32, u64, u64), ExportError> {
     check_spectral_output(scene, path)?;
     let renderer = Renderer::new(scene)?;
+    let layers = &scene.output.layers;
+    if !layers.is_empty()
+        && !matches!(
+            output::OutputFormat::from_path(path)?,
+            output::OutputFormat::Exr
+        )
+    {
+        return Err(SceneError::new(
+            "output",
+            format!(
+                "'{}': layers ({}) need an EXR file, not a PNG",
+                path.display(),
+                layers.join(", ")
+            ),
+        )
+        .into());
+    }
+    if !layers.is_empty() && scene.output.spectral_bands.is_some() {
+        return Err(SceneError::new(
+            "output",
+            "layers and a spectral image do not go into one file yet: render them as two",
+        )
+        .into());
+    }
     let total = scene.render.spp;
     let (film, paths) =
         service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
@@ -104,7 +128,17 @@ pub fn render_to_file(
             &image,
             &centres,
             planes,
-            &exr_metadata(scene, total, paths, film.discarded),
+            &image_metadata(scene, &image, total, paths, film.discarded),
+        )?;
+        return Ok((total, paths, film.discarded));
+    }
+    if !layers.is_empty() {
+        write_layered_exr(
+            scene,
+            &renderer,
+            path,
+            &image,
+            image_metadata(scene, &image, total, paths, film.discarded),
         )?;
         return Ok((total, paths, film.discarded));
     }
@@ -137,6 +171,45 @@ pub fn check_spectral_output(scene: &Scene, path: &Path) -> Result<(), ExportErr
         )
         .into());
     }
+    Ok(())
+}
+
+/// Writes `image` (`R`, `G`, `B`) and the channels of the scene's layers
+/// ([`crate::render::layers`]) into one EXR at `path`, atomically, with the
+/// render's `metadata` and the layers' names (`skyrender:layers`).
+fn write_layered_exr(
+    scene: &Scene,
+    renderer: &Renderer,
+    path: &Path,
+    image: &output::RgbImage,
+    mut metadata: Vec<(String, String)>,
+) -> Result<(), ExportError> {
+    // Each layer once, in the order asked for.
+    let mut layers: Vec<String> = Vec::new();
+    for layer in &scene.output.layers {
+        if !layers.contains(layer) {
+            layers.push(layer.clone());
+        }
+    }
+    let mut channels: Vec<(String, Vec<f32>)> = ["R", "G", "B"]
+        .iter()
+        .enumerate()
+        .map(|(c, name)| {
+            (
+                (*name).to_owned(),
+                image.pixels.iter().map(|p| p[c]).collect(),
+            )
+        })
+        .collect();
+    channels.extend(renderer.layer_channels(&layers));
+    metadata.push(("skyrender:layers".into(), layers.join(",")));
+    output::channels::write_exr_image_channels(
+        path,
+        image.width as usize,
+        image.height as usize,
+        channels,
+        &metadata,
+    )?;
     Ok(())
 }
 

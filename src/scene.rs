@@ -254,7 +254,29 @@ impl OutputParams {
             _ => Ok(()),
         }
     }
+
+    /// Checks the layer names: each one of [`OUTPUT_LAYERS`].
+    pub fn check_layers(&self) -> Result<(), SceneError> {
+        match self
+            .layers
+            .iter()
+            .find(|name| !OUTPUT_LAYERS.contains(&name.as_str()))
+        {
+            Some(name) => Err(SceneError::new(
+                "layers",
+                format!(
+                    "unknown layer '{name}' (valid layers: {})",
+                    OUTPUT_LAYERS.join(", ")
+                ),
+            )),
+            None => Ok(()),
+        }
+    }
 }
+
+/// The layers a render can write beside its RGB image (see
+/// `crate::render::layers`).
+pub const OUTPUT_LAYERS: &[&str] = &["transmittance", "Z"];
 
 /// An invalid parameter.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
@@ -654,6 +676,7 @@ impl Scene {
                 "needs russian_roulette = true (roulette and splitting by importance go together)",
             ));
         }
+        self.output.check_layers()?;
         Ok(())
     }
 }

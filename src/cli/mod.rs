@@ -100,6 +100,8 @@ pub enum Command {
         split: render::SplitArgs,
         #[command(flatten)]
         spectral: render::SpectralArgs,
+        #[command(flatten)]
+        layers: render::LayerArgs,
         /// Output file, .exr or .png; for a timelapse, a name with a run of
         /// `#` for the frame number (sky_####.exr).
         #[arg(short, long, value_name = "OUT.exr|OUT.png")]
@@ -580,7 +582,8 @@ pub fn run(command: Command) -> Result<(), CliError> {
             sequence,
             split,
             spectral,
-        } => render::run(&args, &output, &sequence, &split, &spectral),
+            layers,
+        } => render::run(&args, &output, &sequence, &split, &spectral, &layers),
         Command::Merge { parts, output } => {
             check_output_path(&output)?;
             let start = Instant::now();

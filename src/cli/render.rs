@@ -85,6 +85,35 @@ impl SpectralArgs {
     }
 }
 
+/// Compositing layers beside the image (see `crate::render::layers`).
+#[derive(Args, Debug, Default, Clone)]
+pub struct LayerArgs {
+    /// Write layers into the EXR beside R,G,B: a comma-separated list of
+    /// transmittance, Z; alone, all of them [default: the scene's [output]
+    /// layers, none].
+    #[arg(long, value_name = "LIST", num_args = 0..=1, default_missing_value = "all")]
+    pub layers: Option<String>,
+}
+
+impl LayerArgs {
+    /// `scene` with the layers asked for (checked by `Scene::validate`).
+    fn apply(&self, scene: &mut Scene) -> Result<(), CliError> {
+        let Some(list) = &self.layers else {
+            return Ok(());
+        };
+        scene.output.layers = if list == "all" {
+            crate::scene::OUTPUT_LAYERS
+                .iter()
+                .map(|s| (*s).to_owned())
+                .collect()
+        } else {
+            list.split(',').map(|s| s.trim().to_owned()).collect()
+        };
+        scene.output.check_layers()?;
+        Ok(())
+    }
+}
+
 /// One part of a render split across processes or machines, merged later
 /// by `skyrender merge`.
 #[derive(Args, Debug, Default, Clone)]
@@ -263,10 +292,39 @@ pub fn run(
     sequence: &SequenceArgs,
     split: &SplitArgs,
     spectral: &SpectralArgs,
+    layers: &LayerArgs,
 ) -> Result<(), CliError> {
     let mut base = args.build()?;
     spectral.apply(&mut base)?;
+    layers.apply(&mut base)?;
+    if !base.output.layers.is_empty() && base.output.spectral_bands.is_some() {
+        return Err(SceneError::new(
+            "output",
+            "layers and a spectral image do not go into one file yet: render them as two",
+        )
+        .into());
+    }
+    if !base.output.layers.is_empty()
+        && !matches!(OutputFormat::from_path(output)?, OutputFormat::Exr)
+    {
+        return Err(SceneError::new(
+            "output",
+            format!(
+                "'{}': layers ({}) need an EXR file, not a PNG",
+                output.display(),
+                base.output.layers.join(", ")
+            ),
+        )
+        .into());
+    }
     if let Some(part) = split.part(&base)? {
+        if !base.output.layers.is_empty() {
+            return Err(SceneError::new(
+                "layers",
+                "a part of a split render holds no layers (render the whole image)",
+            )
+            .into());
+        }
         return run_part(args, &base, part, output, sequence.resume);
     }
     let mut jobs = jobs(&base, output, sequence)?;

@@ -23,6 +23,29 @@ pub fn write_exr_channels(
     channels: Vec<(String, Vec<f32>)>,
     metadata: &[(String, String)],
 ) -> Result<(), OutputError> {
+    write_channels(path, (width, height), channels, metadata, false)
+}
+
+/// [`write_exr_channels`] for an image: its `R`, `G`, `B` and any other
+/// colour layers are linear Rec.709, which the standard `chromaticities`
+/// attribute says, as on every RGB EXR written here.
+pub fn write_exr_image_channels(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Vec<f32>)>,
+    metadata: &[(String, String)],
+) -> Result<(), OutputError> {
+    write_channels(path, (width, height), channels, metadata, true)
+}
+
+fn write_channels(
+    path: &Path,
+    (width, height): (usize, usize),
+    channels: Vec<(String, Vec<f32>)>,
+    metadata: &[(String, String)],
+    rec709: bool,
+) -> Result<(), OutputError> {
     if let Some((name, _)) = channels.iter().find(|(_, v)| v.len() != width * height) {
         return Err(OutputError::InvalidImage {
             path: path.to_path_buf(),
@@ -41,7 +64,10 @@ pub fn write_exr_channels(
         Encoding::SMALL_LOSSLESS,
         AnyChannels::sort(list),
     );
-    let image = ExrImage::from_layer(layer);
+    let mut image = ExrImage::from_layer(layer);
+    if rec709 {
+        image.attributes.chromaticities = Some(super::REC709_CHROMATICITIES);
+    }
     write_atomically(path, |writer| {
         image
             .write()

@@ -17,6 +17,7 @@ pub mod film;
 pub mod film_spectral;
 pub mod guide;
 pub mod integrator;
+pub mod layers;
 pub mod medium;
 pub mod parts;
 pub mod service;
@@ -361,10 +362,11 @@ impl Renderer {
     /// where the renderer splats; the adaptive plan's byte) and, on top, the
     /// larger of the adaptive plan's working arrays (a pixel index, the
     /// luminance, its spread, a bin and the plan: 19 bytes) and the output
-    /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3). The tables the
-    /// integrator reads do not grow with the image and are left out. A
-    /// spectral image adds its sums and planes
-    /// ([`film_spectral::spectral_bytes_per_pixel`]).
+    /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3), plus the
+    /// layers' planes where the output has layers
+    /// ([`Self::layer_bytes_per_pixel`]) and a spectral image's sums and
+    /// planes ([`film_spectral::spectral_bytes_per_pixel`]). The tables the
+    /// integrator reads do not grow with the image and are left out.
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
         let film = 12 + if self.splatting { 12 } else { 0 } + 1;
@@ -373,7 +375,7 @@ impl Renderer {
         let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {
             film_spectral::spectral_bytes_per_pixel(bands, self.splatting)
         });
-        pixels * (film + planning.max(output) + spectral)
+        pixels * (film + planning.max(output) + spectral + self.layer_bytes_per_pixel())
     }
 
     /// Checks, before any work, that [`Self::memory_needed_bytes`] can be
