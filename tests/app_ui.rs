@@ -8,7 +8,7 @@ use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
 use egui::accesskit::Role;
-use egui_kittest::kittest::Queryable as _;
+use egui_kittest::kittest::{NodeT as _, Queryable as _};
 use egui_kittest::Harness;
 use exr::prelude::{AttributeValue, Text};
 use skyrender::app::{AppState, ExportStatus, SequenceStatus, SkyApp, SunMode};
@@ -748,4 +748,152 @@ fn timelapse_export_writes_numbered_frames_and_resumes() {
     };
     assert!(message.contains('#'), "{message}");
     assert_eq!(entries(dir.path()), frames);
+}
+
+/// The middle of the sky view, a quarter of the way down: 45° up in the
+/// equirectangular view.
+fn sky_point(harness: &Harness<'_, SkyApp>) -> egui::Pos2 {
+    let view = harness.get_by_label("Sky view").rect();
+    egui::pos2(view.center().x, view.top() + 0.25 * view.height())
+}
+
+/// The text a label shows.
+fn text_of(node: &egui_kittest::Node<'_>) -> String {
+    node.accesskit_node()
+        .label()
+        .or_else(|| node.value())
+        .unwrap_or_default()
+}
+
+#[test]
+fn hovering_the_view_reads_out_direction_luminance_and_colour() {
+    let mut harness = harness(tiny_app("midday"));
+    wait_for_current_frame(&mut harness);
+    harness.run_steps(2);
+    assert!(harness.query_by_label_contains("cd/m²").is_none());
+    let at = sky_point(&harness);
+    harness.hover_at(at);
+    harness.run_steps(2);
+    let luminance = text_of(&harness.get_by_label_contains("cd/m²"));
+    assert!(luminance.starts_with("luminance "), "{luminance}");
+    let direction = text_of(&harness.get_by_label_contains("°, elevation"));
+    // "azimuth A°, elevation E°"
+    let numbers: Vec<f64> = direction
+        .split(|c: char| !(c.is_ascii_digit() || c == '.' || c == '-'))
+        .filter_map(|t| t.parse().ok())
+        .collect();
+    assert_eq!(numbers.len(), 2, "{direction}");
+    assert!(
+        (numbers[1] - 45.0).abs() < 3.0,
+        "{direction}: a quarter down the panorama is 45° up"
+    );
+    harness.get_by_label_contains("CIE 1931 x 0.");
+    harness.get_by_label_contains("RGB (linear Rec.709)");
+
+    // Outside a fisheye's circle there is no sky, and no readout.
+    harness
+        .state_mut()
+        .state_mut()
+        .set_camera_kind(CameraKind::Fisheye);
+    wait_for_current_frame(&mut harness);
+    harness.run_steps(2);
+    let view = harness.get_by_label("Sky view").rect();
+    harness.hover_at(view.left_top() + egui::vec2(2.0, 2.0));
+    harness.run_steps(2);
+    assert!(harness.query_by_label_contains("cd/m²").is_none());
+    harness.hover_at(view.center());
+    harness.run_steps(2);
+    harness.get_by_label_contains("cd/m²");
+}
+
+#[test]
+fn clicking_the_view_plots_the_spectrum_in_the_background() {
+    let mut app = tiny_app("midday");
+    app.set_probe_samples(8);
+    let mut harness = harness(app);
+    wait_for_current_frame(&mut harness);
+    harness.run_steps(2);
+    let at = sky_point(&harness);
+    harness.hover_at(at);
+    for pressed in [true, false] {
+        harness.event(egui::Event::PointerButton {
+            pos: at,
+            button: egui::PointerButton::Primary,
+            pressed,
+            modifiers: egui::Modifiers::NONE,
+        });
+    }
+    harness.run_steps(2);
+    let probe = harness
+        .state()
+        .spectrum()
+        .expect("the click starts a probe");
+    assert!((probe.elevation_deg - 45.0).abs() < 3.0, "{probe:?}");
+    step_until(&mut harness, "the spectrum", |app| {
+        app.spectrum().is_some_and(|p| p.result.is_some())
+    });
+    harness.run_steps(2);
+    let estimates = harness
+        .state()
+        .spectrum()
+        .unwrap()
+        .result
+        .clone()
+        .unwrap()
+        .unwrap();
+    assert_eq!(estimates.len(), 48, "360–830 nm every 10 nm");
+    assert!(estimates
+        .iter()
+        .all(|e| e.radiance.is_finite() && e.std_error >= 0.0));
+    let title = format!("{} at azimuth", skyrender::app::SPECTRUM_TITLE);
+    harness.get_by_label_contains(&title);
+    assert!(harness.query_by_label_contains("stale").is_none());
+
+    // A scene change leaves it up, marked stale.
+    harness.state_mut().state_mut().set_sun_elevation(20.0);
+    harness.run_steps(2);
+    harness.get_by_label_contains("stale");
+    harness.get_by_label("Close").click_accesskit();
+    harness.run_steps(2);
+    assert!(harness.query_by_label_contains(&title).is_none());
+}
+
+/// Mean absolute difference per channel between two renders inside `rect`.
+fn mean_difference(a: &image::RgbaImage, b: &image::RgbaImage, rect: egui::Rect) -> f64 {
+    let (mut sum, mut n) = (0.0, 0.0);
+    for y in rect.top() as u32..rect.bottom() as u32 {
+        for x in rect.left() as u32..rect.right() as u32 {
+            let (p, q) = (a.get_pixel(x, y).0, b.get_pixel(x, y).0);
+            for k in 0..3 {
+                sum += (f64::from(p[k]) - f64::from(q[k])).abs();
+                n += 1.0;
+            }
+        }
+    }
+    sum / n
+}
+
+#[test]
+fn false_colour_shows_log_luminance_with_a_colour_bar() {
+    let mut harness = harness(tiny_app("midday"));
+    step_until(&mut harness, "the finished frame", |app| {
+        app.frame()
+            .is_some_and(|f| f.finished && f.epoch == app.service_epoch())
+    });
+    harness.run_steps(2);
+    let label = skyrender::app::COLOUR_BAR_LABEL;
+    assert!(harness.query_by_label(label).is_none());
+    let before = harness.render().unwrap();
+    harness.get_by_label("Display").click_accesskit();
+    harness.run_steps(2);
+    harness
+        .get_by_label("False colour (log luminance)")
+        .click_accesskit();
+    harness.run_steps(3);
+    assert!(harness.state().state().display.false_colour);
+    harness.get_by_label(label);
+    let view = harness.get_by_label("Sky view").rect().shrink(2.0);
+    let after = harness.render().unwrap();
+    let diff = mean_difference(&before, &after, view);
+    assert!(diff > 20.0, "the view barely changed: {diff}");
 }

@@ -12,6 +12,7 @@ use std::sync::Arc;
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use super::readout::FalseColourScale;
 use super::state::{DisplaySettings, SequenceStatus, ToneCurve};
 use crate::export::{FramePattern, Timelapse};
 use crate::output::{self, check_writable, replace_file, OutputFormat};
@@ -262,8 +263,13 @@ impl Drop for ExportJob {
     }
 }
 
-/// Tone-map `image` for display: 8-bit sRGB, row-major, 3 bytes a pixel.
+/// Tone-map `image` for display: 8-bit sRGB, row-major, 3 bytes a pixel
+/// (with `false_colour`, its log luminance in false colour on
+/// [`FalseColourScale::of`] the image instead).
 pub fn tonemap_rgb8(image: &output::RgbImage, display: &DisplaySettings) -> Vec<u8> {
+    if display.false_colour {
+        return FalseColourScale::of(image).map(image);
+    }
     let scale = display.exposure_ev.exp2();
     let curve: ToneCurve = display.tone_curve;
     image

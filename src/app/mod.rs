@@ -4,6 +4,8 @@
 //!   settings as a plain struct, testable without a window.
 //! * [`sun_place`]: the Sun panel's date, time and place inputs and how
 //!   they become the scene's `sun.date_time`, latitude and longitude.
+//! * [`readout`]: what the sky view reads off the frame (a pixel's
+//!   direction, luminance and colour; the false-colour luminance map).
 //! * [`io`]: the file work (HDR panorama and timelapse exports, saving the
 //!   view, scene TOML, screenshots) as plain functions taking a path.
 //! * [`ui`]: [`SkyApp`], the window's layout and its background work; the
@@ -17,6 +19,7 @@
 
 pub mod io;
 mod panels;
+pub mod readout;
 pub mod state;
 pub mod sun_place;
 mod timing;
@@ -30,5 +33,6 @@ pub use state::{
 };
 pub use sun_place::{DatePlace, SunMode};
 pub use timing::LatencyStats;
-pub use ui::SkyApp;
+pub use ui::{SkyApp, SpectrumProbe, DEFAULT_PROBE_SAMPLES, SPECTRUM_TITLE};
+pub use view::COLOUR_BAR_LABEL;
 pub use window::{run_app, NO_DISPLAY_MESSAGE, WINDOW_SIZE};

@@ -105,6 +105,9 @@ pub struct DisplaySettings {
     pub tone_curve: ToneCurve,
     /// Draw a ring around the sun's position.
     pub mark_sun: bool,
+    /// Show log luminance in false colour (with a colour bar) instead of
+    /// the tone-mapped image.
+    pub false_colour: bool,
 }
 
 impl Default for DisplaySettings {
@@ -114,6 +117,7 @@ impl Default for DisplaySettings {
             auto_exposure: true,
             tone_curve: ToneCurve::Filmic,
             mark_sun: true,
+            false_colour: false,
         }
     }
 }

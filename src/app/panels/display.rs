@@ -1,5 +1,5 @@
-//! The Display section: exposure, tone curve and the sun marker (how the
-//! image is shown; none of it needs a new render).
+//! The Display section: exposure, tone curve, the sun marker and false
+//! colour (how the image is shown; none of it needs a new render).
 
 use egui::Slider;
 
@@ -44,6 +44,10 @@ impl DisplayPanel<'_> {
                     .on_hover_text("How linear radiance becomes screen brightness");
                 ui.checkbox(&mut display.mark_sun, "Mark the sun")
                     .on_hover_text("Draw a ring where the sun is");
+                ui.checkbox(&mut display.false_colour, "False colour (log luminance)")
+                    .on_hover_text(
+                        "Show luminance on a log scale in viridis, with a colour bar in cd/m²",
+                    );
             });
     }
 }
