@@ -30,7 +30,7 @@ pub const SOBOL_POINTS: u64 = 1 << 16;
 /// Space-Efficient Statistically Good Algorithms for Random Number
 /// Generation") read through XSH-RR 64/32 for 32-bit values and RXS-M-XS
 /// 64/64 for uniforms (one step each: two 32-bit steps per uniform made
-/// the generator 6 % of a midday render, callgrind, session 11), with the
+/// the generator 6 % of a midday render, callgrind), with the
 /// optional Sobol prefix and a replay buffer.
 #[derive(Clone, Debug)]
 pub struct Rng {

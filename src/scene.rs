@@ -652,7 +652,7 @@ impl Scene {
         {
             // From above the air the splats' densities follow the light
             // poorly: 70 % noise after 40 s on the `space` bench scene
-            // against 2 % without (`BENCHMARKS.md`, session 20).
+            // against 2 % without (`BENCHMARKS.md`).
             return Err(SceneError::new(
                 "circle_splatting",
                 "needs the observer inside the atmosphere (altitude below its top)",

@@ -27,7 +27,7 @@
 //! transmittances above all, is shared). Each
 //! term carries the densities it was drawn with, so every pixel's expected
 //! sum is V exactly; the paths' noise, which at twilight is most of the
-//! image's, is spread over K pixels (`BENCHMARKS.md`, session 20).
+//! image's, is spread over K pixels (`BENCHMARKS.md`).
 //!
 //! * **Points** (r, θ) are drawn in polar coordinates (ρ, φ) about the
 //!   observer's own (r₀, θ₀) in the plane (r − r₀, r₀ (θ − θ₀)): a circle
@@ -66,7 +66,7 @@ use crate::rng::Rng;
 
 /// Positions along a circle per point. With two directions per point
 /// (fixed passes, twilight and sunset, noise² × CPU time against 32, the
-/// CPU times ±10 %; session 22): 24: 1.3×, 48: 0.67–0.83×, 64:
+/// CPU times ±10 %): 24: 1.3×, 48: 0.67–0.83×, 64:
 /// 0.70–0.73×, 96: 0.62–0.72× — a broad optimum: the phase-drawn
 /// positions follow the light the paths found, and the paths cost more
 /// than the positions.
@@ -74,7 +74,7 @@ pub const SPLATS_PER_WALK: usize = 64;
 /// Directions (each with its path) per point, shared by its positions.
 /// About half a twilight walk's variance was its path's (four paths along
 /// one direction: 0.54× the splats' variance). Two directions against one,
-/// fixed passes (session 22): variance 0.69× at twilight, 0.72× at sunset
+/// fixed passes: variance 0.69× at twilight, 0.72× at sunset
 /// for 1.27× and 1.2× the CPU time (noise² × time 0.86–0.88×); three:
 /// no better than two.
 const DIRECTIONS_PER_WALK: usize = 2;
@@ -101,7 +101,7 @@ const RHO_SCALES_M: [f64; 2] = [5e3, 30e3];
 /// predecessors' splats ([`LearnedPoints`]), once there are any; the rest
 /// from the prior (table and analytic parts), which keeps the density
 /// positive wherever the prior is. Cross-validated offline on the splats
-/// of one twilight render against another's (session 23): 0.25, 0.5,
+/// of one twilight render against another's: 0.25, 0.5,
 /// 0.75 left 0.84×, 0.75×, 0.70× the splats' variance.
 const LEARNED_SHARE: f64 = 0.75;
 /// Table bins per learned cell along each axis: the learned density is the
@@ -313,7 +313,7 @@ impl Arc {
 /// position of many is then drawn where it is: with the direction's density
 /// alone (one mixture over all positions) that position's splat carried up
 /// to K times the others' weight, and those splats were most of the
-/// twilight sky's variance (`BENCHMARKS.md`, session 21).
+/// twilight sky's variance (`BENCHMARKS.md`).
 struct PhaseCells {
     /// Probability of each cell.
     probabilities: [f64; PHASE_CELLS],
@@ -438,7 +438,7 @@ pub struct CircleSplatter {
 /// walk back). At twilight the prior's guess — the light that scatters
 /// once on the way, from the guide — missed both the brightness of the
 /// paths found low in the shadow and the weight of the splats near the
-/// zenith and on the horizon (`BENCHMARKS.md`, session 23).
+/// zenith and on the horizon (`BENCHMARKS.md`).
 ///
 /// A pass draws 3/4 of its points (`LEARNED_SHARE`) from the learned density
 /// and the rest from the prior, so the density is positive wherever the

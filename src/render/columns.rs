@@ -37,7 +37,7 @@
 //! A ray whose bound expects more than two residual
 //! events (grazing rays low down) goes through the shells' chords instead.
 //!
-//! Measured (`BENCHMARKS.md`, session 7): relative std of one shadow-ray
+//! Measured (`BENCHMARKS.md`): relative std of one shadow-ray
 //! estimate 0.003–0.011 on steep rays (chords: 0.013–0.042), 0.015–0.05 on
 //! grazing ones and from orbit (0.06–0.15); instructions per camera path
 //! (callgrind) 27 % fewer at midday, 18 % at sunset, 23 % from orbit, 2 % at

@@ -17,7 +17,7 @@
 //! which the sampled directions find unevenly; they are single scattering's,
 //! so A is the once-scattered light (plus the ground's direct reflection):
 //! at sunset (2°) it leaves 0.6–0.7× the variance, as much as a table of all
-//! orders did (`BENCHMARKS.md`, session 13).
+//! orders did (`BENCHMARKS.md`).
 //!
 //! A is expanded in real spherical harmonics Y_lm about the point's zenith,
 //! azimuth measured from the sun's vertical plane (the field is mirror-
@@ -285,7 +285,7 @@ impl<const N: usize> Picked<'_, N> {
     /// Σ_m a_lm y_lm per degree l (rows) and lane (columns) for the basis
     /// values `y`. The lanes' sums run side by side: one sum of 45 terms
     /// per lane after another is a chain of dependent additions, which cost
-    /// the control a third of its time at sunset (session 14).
+    /// the control a third of its time at sunset.
     pub fn degrees(&self, y: &Expansion) -> [[f64; N]; L_MAX + 1] {
         let expansions: [&Expansion; N] = std::array::from_fn(|j| self.expansion(j));
         let mut degrees = [[0.0; N]; L_MAX + 1];

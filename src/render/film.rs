@@ -39,7 +39,7 @@ use crate::output::RgbImage;
 use crate::spectrum::xyz_to_rec709;
 
 /// Most samples per pass a planned pixel takes. 16 rather than 8 since the
-/// mirror pairs (session 18): with a plan scale of 1.25, 0.92× the variance
+/// mirror pairs: with a plan scale of 1.25, 0.92× the variance
 /// per CPU second at twilight (fixed passes, two seed pairs; 0.91× per path
 /// over four), 0.99× at sunset and midday (`BENCHMARKS.md`).
 pub const MAX_SAMPLES_PER_PASS: u8 = 16;
@@ -49,8 +49,8 @@ const PLAN_RADIUS: usize = 4;
 /// Samples per pass ≈ this × (neighbourhood spread / median spread), clamped
 /// to 1–[`MAX_SAMPLES_PER_PASS`]. 1.0 and 1.5 measured alike on the four
 /// benchmark scenes (time ratios of uniform sampling 1.15–1.41 and
-/// 1.14–1.50, `BENCHMARKS.md`, "Session 9"); 1.5 won at midday and twilight.
-/// On the folded image of mirror pairs, 1.25 with a cap of 16 (session 18).
+/// 1.14–1.50, `BENCHMARKS.md`); 1.5 won at midday and twilight.
+/// On the folded image of mirror pairs, 1.25 with a cap of 16.
 const PLAN_SCALE: f64 = 1.25;
 /// Resolution of the spreads' histogram, bins per octave: the median is the
 /// geometric centre of the lower median's bin, within 2^(1/16) (4.4 %) of

@@ -29,7 +29,7 @@
 //! `sunlight_samples` and `splitting` of [`super::IntegratorOptions`].
 //! `sunlight_samples` is on by default with the sun below [`super::integrator::LOW_SUN_ELEVATION_DEG`],
 //! where its segment estimates, through this guide's cached densities, win
-//! at equal time (`BENCHMARKS.md`, session 8); `sky_guide` draws a quarter
+//! at equal time (`BENCHMARKS.md`); `sky_guide` draws a quarter
 //! of the directions in the shadow from the table by default, 0.35 with the
 //! sun below the horizon (second-order light at twilight ~25× cheaper per
 //! path; the heavier tails of higher orders stay, so the whole image gains

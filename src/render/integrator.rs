@@ -79,7 +79,7 @@
 //! and the path going on estimates only L − A ([`super::control`]). At
 //! sunset the aureole, cut by the bright horizon, gives the light a point
 //! sees a sharp structure that the sampled directions find unevenly; taken
-//! out, it leaves 0.67× the variance (`BENCHMARKS.md`, session 13).
+//! out, it leaves 0.67× the variance (`BENCHMARKS.md`).
 //!
 //! **Multiply scattered light splatted along circles of symmetry**
 //! (`circle_splatting`, on with the sun below 10°): the camera's
@@ -192,7 +192,7 @@ pub struct IntegratorOptions {
     /// Unset (the default): with the sun lower than [`LOW_SUN_ELEVATION_DEG`]
     /// (see [`Self::resolved`]), where the glow low over the sun's azimuth
     /// holds much of the light even a sunlit vertex sees: at twilight and at
-    /// sunset 16 % less variance at about equal cost (session 10). By
+    /// sunset 16 % less variance at about equal cost. By
     /// day the phase function about the sun follows the aureole better than
     /// the table's cells (guiding everywhere lost 1.2–1.6×, `BENCHMARKS.md`).
     /// An integrator built directly reads unset as false.
@@ -290,7 +290,7 @@ impl Default for IntegratorOptions {
 /// path segment through points drawn from its expected sunlight (one per
 /// segment, [`IntegratorOptions::sunlight_samples`]), above it by delta
 /// tracking. Measured at equal time (`bench --variants sunlight_samples=…`,
-/// `BENCHMARKS.md`, session 8), the segment estimates need 0.45–0.52× the
+/// `BENCHMARKS.md`), the segment estimates need 0.45–0.52× the
 /// time of delta tracking at −4°, 0.68–0.77× at 2°, 0.95–1.03× at 3°, but
 /// 1.11× at 5°, 1.13× at 6°, 1.38× at 10° and 1.4–1.6× at 15°, 20° and 45°:
 /// low down, most of the sky's light comes from thin sunlit stretches of
@@ -303,7 +303,7 @@ pub const LOW_SUN_ELEVATION_DEG: f64 = 3.0;
 /// (S = 1, 3, 5, 7) 0.88× (0.78× the variance), 0.3: 0.97×, 0.65: 0.89×;
 /// at −8° 0.62–0.75×, at −1° 0.95–0.98×, at 0.5° 0.97–0.99×, at 2° 1.00×
 /// over nine seeds (0.97–1.11); by day (45°) none; in the bench at −4° 0.83×
-/// the time to equal noise, at 2° even (`BENCHMARKS.md`, session 16).
+/// the time to equal noise, at 2° even (`BENCHMARKS.md`).
 pub const CAMERA_IMPORTANCE: f64 = 0.5;
 
 /// [`IntegratorOptions::sun_lobe`] unless the sun is high or the control
@@ -313,7 +313,7 @@ pub const CAMERA_IMPORTANCE: f64 = 0.5;
 pub const SUN_LOBE: f64 = 0.3;
 /// [`IntegratorOptions::sun_lobe`] with the sun higher than
 /// [`HIGH_SUN_ELEVATION_DEG`]: at midday (45°) 0.1–0.2 leave 12 % less
-/// variance than 0.3 at equal time (the same seeds, session 10); at 20°,
+/// variance than 0.3 at equal time (the same seeds); at 20°,
 /// 10° (from orbit) and 2° the share made no difference beyond the noise.
 pub const HIGH_SUN_LOBE: f64 = 0.15;
 /// See [`HIGH_SUN_LOBE`].
@@ -322,11 +322,11 @@ pub const HIGH_SUN_ELEVATION_DEG: f64 = 30.0;
 /// control takes out the once-scattered light's aureole, which the lobe
 /// samples for, and leaves it nothing to find. Fixed passes at 0.5°, 2° and
 /// 2.9° (seeds 1 and 3): 0.84–0.90× the time to equal noise of 0.3
-/// (`BENCHMARKS.md`, session 14); without the control, at 5°, 0 needs 1.7×.
+/// (`BENCHMARKS.md`); without the control, at 5°, 0 needs 1.7×.
 pub const CONTROL_SUN_LOBE: f64 = 0.0;
 /// Sun elevations (at the observer, from, to) with
 /// [`IntegratorOptions::control_variate`] on by default. Measured at fixed
-/// passes (`BENCHMARKS.md`, session 13): at 2° 0.68–0.69× the variance for
+/// passes (`BENCHMARKS.md`): at 2° 0.68–0.69× the variance for
 /// 1.18–1.21× the time (0.5°: 0.69×, 2.9°: 0.62×); at −1°, 5° and 10°
 /// 0.85–0.87×, no more than it costs; at −4° and 45° nothing.
 pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
@@ -382,7 +382,7 @@ pub fn control_table_holds(atmosphere: &AtmosphereParams) -> bool {
 pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
 /// Below this sun elevation (at the observer)
 /// [`IntegratorOptions::circle_splatting`] is on by default. With the
-/// positions drawn by the phase function (session 21, `BENCHMARKS.md`), the
+/// positions drawn by the phase function (`BENCHMARKS.md`), the
 /// camera's own branches need 1.3–2.3× the time at twilight (−4°, four bench
 /// seeds) and 1.09–1.11× at sunset (2°, three seeds); fixed-pass pairs of
 /// the sunset scene at other elevations, splatting's noise² × CPU time
@@ -391,14 +391,14 @@ pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
 pub const CIRCLE_SPLATTING_ELEVATION_DEG: f64 = 10.0;
 /// [`IntegratorOptions::sky_guide`] with the sun above the horizon: at
 /// twilight before roulette and splitting, 0.74–0.90× the time to equal
-/// noise of none (two seed pairs, session 10; 0.15 and 0.35 alike, 0.5 no
+/// noise of none (two seed pairs; 0.15 and 0.35 alike, 0.5 no
 /// better than none); at sunset, with the control variate, 0.15 and 0.35
-/// need 1.02–1.09× its time (`BENCHMARKS.md`, session 15).
+/// need 1.02–1.09× its time (`BENCHMARKS.md`).
 pub const SKY_GUIDE: f64 = 0.25;
 /// [`IntegratorOptions::sky_guide`] with the sun below the horizon
 /// ([`SPLITTING_ELEVATION_DEG`]): with roulette and splitting on, twilight
 /// (−4°) needs 0.94× the time to equal noise of 0.25 (7 seeds, 0.86–1.05;
-/// 0.4: 0.96×, 0.15: 1.15–1.20×; `BENCHMARKS.md`, session 15).
+/// 0.4: 0.96×, 0.15: 1.15–1.20×; `BENCHMARKS.md`).
 pub const SHADOW_SKY_GUIDE: f64 = 0.35;
 
 impl IntegratorOptions {
@@ -525,7 +525,7 @@ const MAX_SPLIT: usize = 4;
 /// ground up, split each start into ~20 000 copies (aerosol amount 100 at
 /// −4°: up to 60 000 vertices per camera path against 13 in the preset);
 /// in the twilight preset it binds for about 1 camera path in 100, and the
-/// noise is unchanged (`BENCHMARKS.md`, session 19).
+/// noise is unchanged (`BENCHMARKS.md`).
 const MAX_COPIES: usize = 256;
 /// Largest [`IntegratorOptions::forced_collision_depth`] accepted (the
 /// depth past which roulette caps survival at 0.9).
@@ -535,7 +535,7 @@ pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
 
 /// Next-event points per camera ray by default: against 1, 7.5 % less
 /// variance at midday for 1.5 % more time, 6 % and 4 % less from orbit and
-/// at sunset, the same at twilight (session 11, before splatting).
+/// at sunset, the same at twilight (before splatting).
 pub const CAMERA_SAMPLES: u32 = 2;
 
 /// Next-event points per camera ray by default where the renderer splats
@@ -543,7 +543,7 @@ pub const CAMERA_SAMPLES: u32 = 2;
 /// the ground's light) only, whose variance is per point (4× the points:
 /// 3.5× less of it at twilight), while the points cost little beside the
 /// splats. Against 2, at equal passes, 22 % less variance at twilight and
-/// 13 % at sunset; noise² × CPU time 0.89× and 0.84× (session 22).
+/// 13 % at sunset; noise² × CPU time 0.89× and 0.84×.
 pub const SPLAT_CAMERA_SAMPLES: u32 = 8;
 /// Zenith × azimuth strata of the directions a control cell is projected
 /// from.
@@ -741,7 +741,7 @@ impl<'a> Integrator<'a> {
     /// from next-event estimates along [`CONTROL_DIRECTIONS`] stratified
     /// directions. Single scattering holds the sharp part of the light a
     /// point sees (the aureole, the horizon), which is what the control
-    /// takes out of the paths (`BENCHMARKS.md`, session 13); the random
+    /// takes out of the paths (`BENCHMARKS.md`); the random
     /// numbers are the cell's own, so the table does not depend on the
     /// render's.
     fn project_cell(&self, table: &RadianceTable, i: usize, k: usize) -> CellCoefficients {

@@ -189,7 +189,7 @@ struct ShellExtinction {
 /// the last slot, unused slots zero), so that a path's bounds for all shells,
 /// computed for every path, are one straight loop over the slots (7.5 %
 /// fewer instructions per path than a loop over shell structs from orbit,
-/// `BENCHMARKS.md`, session 8).
+/// `BENCHMARKS.md`).
 #[derive(Clone, Debug)]
 struct ShellTerms {
     /// Largest air (m⁻³), ozone (m⁻³) and aerosol extinction at 340 nm
@@ -1159,7 +1159,7 @@ impl Tracker<'_> {
     /// The majorant's optical depth over the pieces the walk has not
     /// reached, in closed form rather than piece by piece (a walk costs a
     /// square root and a branch per piece, and forcing then walked every
-    /// segment twice: 6 % of a midday render, callgrind, session 11).
+    /// segment twice: 6 % of a midday render, callgrind).
     /// Measured from the perigee, the ray's points at distance u lie at
     /// radius √(p² + u²), so shell s, between radii a and b, holds the u
     /// with c(a) ≤ |u| < c(b), c(r) = √(max(r² − p², 0)): the span's part

@@ -71,16 +71,16 @@ pub struct OutOfMemory {
 const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
 /// Points splatted per pixel in each pass after the first ([`circles`];
 /// each with two directions and paths). At twilight, in the bench (256×128, 10 s,
-/// session 20, one path per point): 1: 7.74 %, 2: 7.07–7.82 %, 3:
+/// one path per point): 1: 7.74 %, 2: 7.07–7.82 %, 3:
 /// 6.55–7.43 % (five runs), 4: 7.19 %: with more, the camera's own
 /// samples (single scattering, the ground) get too few passes. With two
 /// paths per point, 2 and 3 give the same noise² × time (fixed passes,
-/// twilight and sunset, session 22): 2, for shorter passes.
+/// twilight and sunset): 2, for shorter passes.
 const SPLAT_PATHS_PER_PIXEL: u64 = 2;
 /// Points per pixel of the first splatting pass (pass 1), the only one that
 /// draws them from the prior alone ([`circles::LearnedPoints`]): half as
 /// many, so the learned density takes over sooner. Twilight, draft + 2
-/// passes, seeds 1/3/5/7 (session 23): noise² × CPU time 0.91×; draft +
+/// passes, seeds 1/3/5/7: noise² × CPU time 0.91×; draft +
 /// 3 passes against draft + 3 with 2 in the first: 0.89×.
 const FIRST_SPLAT_PATHS_PER_PIXEL: u64 = 1;
 
@@ -118,10 +118,10 @@ pub const ADAPTIVE_FROM_PASS: u32 = 2;
 /// path, 6–16× the variance of a full pass's by day (sun 45°), 23–49× with
 /// the sun at 2° and 58–147× at −4°, where a rare collision in the sunlit
 /// air high above carries the light (four views at elevations 7–74°,
-/// `BENCHMARKS.md`, session 14). Any fixed weight keeps the mean unbiased;
+/// `BENCHMARKS.md`). Any fixed weight keeps the mean unbiased;
 /// a positive one lets the draft alone show a first image. By day 1/8 (at 1
-/// the draft doubled the upper sky's variance in a 24-pass midday render,
-/// session 6); at twilight 1/8 nearly doubled the single-scattered light's
+/// the draft doubled the upper sky's variance in a 24-pass midday render);
+/// at twilight 1/8 nearly doubled the single-scattered light's
 /// variance over 8 passes (absolute noise 0.296 against 0.216 with 1/100).
 pub fn draft_weight(sun_elevation_deg: f64) -> f64 {
     if sun_elevation_deg < 0.0 {
@@ -468,7 +468,7 @@ impl Renderer {
     /// (so the pixel-position coordinates stay stratified over the pair).
     /// Each pixel's samples stay uniform, so its mean stays unbiased. At
     /// fixed passes over four seed pairs, 0.96× the variance at sunset,
-    /// 0.93× at midday, 0.99× at twilight (`BENCHMARKS.md`, session 18).
+    /// 0.93× at midday, 0.99× at twilight (`BENCHMARKS.md`).
     fn sequence_slot(&self, x: u32, y: u32) -> SequenceSlot {
         let (width, height) = (self.scene.render.width, self.scene.render.height);
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);

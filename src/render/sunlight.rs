@@ -27,7 +27,7 @@
 //! at twilight a branch from high in the shadow, near the sunlit air, found
 //! 5–8× the light of one from near the ground, and the branches from the
 //! 4.6 % of points above 12 km carried half the variance of one bright view
-//! (`BENCHMARKS.md`, session 16). With [`CameraDensities::with_importance`]
+//! (`BENCHMARKS.md`). With [`CameraDensities::with_importance`]
 //! a share of the component is drawn ∝ σ_s T × an importance of the point
 //! (the renderer's: the sky guide's mean once-scattered radiance,
 //! [`super::guide::SkyGuide::skylight`]).
@@ -171,7 +171,7 @@ pub struct InScatterDistribution {
     /// ([`Component::Skylight`]): 3 (n + 1) values. Packed to the ray's own
     /// segments (some 20 on average): the guide caches tens of thousands of
     /// these densities, read at random, and at the 96 segments' size they
-    /// overflowed the cache (session 14).
+    /// overflowed the cache.
     values: Box<[f64]>,
     segments: usize,
     /// Approximate lane-averaged ∫ σ_s T dt, T(t_end), and the

@@ -2,8 +2,8 @@
 //!
 //! Every sampled direction turns a uniform variate u into an azimuth 2πu
 //! and needs its sine and cosine: three calls per scattering vertex, which
-//! made libm's `sincos` 4–5 % of a midday render (`perf`, `BENCHMARKS.md`,
-//! session 11). An angle in turns reduces to a quarter turn *exactly*
+//! made libm's `sincos` 4–5 % of a midday render (`perf`, `BENCHMARKS.md`).
+//! An angle in turns reduces to a quarter turn *exactly*
 //! (4u − round(4u) is exact in binary floating point), so two short
 //! polynomials on [−π/4, π/4] serve, with no table and no branch but the
 //! quadrant's swap.
