@@ -19,7 +19,9 @@ pub mod guide;
 pub mod integrator;
 pub mod layers;
 pub mod medium;
+pub mod memory;
 pub mod parts;
+pub mod probe;
 pub mod service;
 pub mod sunlight;
 pub mod trig;
@@ -36,6 +38,8 @@ pub use integrator::{Integrator, IntegratorOptions, Sampler};
 pub use medium::{
     LaneTable, Lanes, Medium, SolarSource, SpectralLanes, TransmittanceEstimator, LANES,
 };
+pub use memory::OutOfMemory;
+pub use probe::SpectralEstimate;
 
 /// The sun's irradiance for `scene`: unit, or the measured spectrum at the
 /// scene's Earth–Sun distance ([`Scene::sun_distance_au`]).
@@ -50,22 +54,6 @@ use crate::spectrum::{ColourMatching, K_M};
 use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
 use film_spectral::SampleLanes;
 use sunlight::CameraDensities;
-
-/// A render's buffers could not be allocated.
-#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
-#[error(
-    "not enough memory for a {width}×{height} render: it needs about {:.2} GiB; \
-     choose a smaller size (--width/--height) or free memory",
-    *bytes as f64 / f64::from(1u32 << 30)
-)]
-pub struct OutOfMemory {
-    /// Image width, pixels.
-    pub width: u32,
-    /// Image height, pixels.
-    pub height: u32,
-    /// [`Renderer::memory_needed_bytes`].
-    pub bytes: u64,
-}
 
 /// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
 const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
@@ -215,18 +203,6 @@ pub struct PassStats {
     pub splat_discarded: u64,
 }
 
-/// One spectral radiance estimate with its Monte Carlo standard error.
-#[derive(Clone, Copy, Debug, serde::Serialize)]
-pub struct SpectralEstimate {
-    pub wavelength_nm: f64,
-    pub radiance: f64,
-    pub std_error: f64,
-    /// Paths whose estimate was not finite (or negative without the control
-    /// variate): counted as 0,
-    /// like a discarded pixel sample.
-    pub discarded: u64,
-}
-
 impl Renderer {
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
         scene.validate()?;
@@ -332,71 +308,6 @@ impl Renderer {
 
     pub fn sun_direction(&self) -> DVec3 {
         self.sun_direction
-    }
-
-    pub fn new_film(&self) -> Film {
-        self.try_new_film().unwrap_or_else(|e| panic!("{e}"))
-    }
-
-    /// [`Self::new_film`], or an error saying how much memory the image
-    /// needs where its buffers cannot be allocated.
-    pub fn try_new_film(&self) -> Result<Film, OutOfMemory> {
-        let film = Film::try_new(self.scene.render.width, self.scene.render.height)
-            .map_err(|_| self.out_of_memory())?
-            .with_mirror(self.mirror);
-        let film = if self.splatting {
-            film.try_with_splats().map_err(|_| self.out_of_memory())?
-        } else {
-            film
-        };
-        match self.scene.output.spectral_bands {
-            Some(bands) => film
-                .try_with_spectral(bands)
-                .map_err(|_| self.out_of_memory()),
-            None => Ok(film),
-        }
-    }
-
-    /// About the most memory a render of this scene holds at once, bytes:
-    /// the film (XYZ sums, 12 bytes a pixel; the splat layer's as many
-    /// where the renderer splats; the adaptive plan's byte) and, on top, the
-    /// larger of the adaptive plan's working arrays (a pixel index, the
-    /// luminance, its spread, a bin and the plan: 19 bytes) and the output
-    /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3), plus the
-    /// layers' planes where the output has layers
-    /// ([`Self::layer_bytes_per_pixel`]) and a spectral image's sums and
-    /// planes ([`film_spectral::spectral_bytes_per_pixel`]). The tables the
-    /// integrator reads do not grow with the image and are left out.
-    pub fn memory_needed_bytes(&self) -> u64 {
-        let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
-        let film = 12 + if self.splatting { 12 } else { 0 } + 1;
-        let planning = 8 + 4 + 4 + 2 + 1;
-        let output = 12 + 3;
-        let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {
-            film_spectral::spectral_bytes_per_pixel(bands, self.splatting)
-        });
-        pixels * (film + planning.max(output) + spectral + self.layer_bytes_per_pixel())
-    }
-
-    /// Checks, before any work, that [`Self::memory_needed_bytes`] can be
-    /// allocated (and frees it again), so a render too large for the
-    /// machine or its limits (`ulimit -v`) stops at once with a message
-    /// rather than aborting when a buffer fails to allocate hours later.
-    pub fn check_memory(&self) -> Result<(), OutOfMemory> {
-        let bytes =
-            usize::try_from(self.memory_needed_bytes()).map_err(|_| self.out_of_memory())?;
-        Vec::<u8>::new()
-            .try_reserve_exact(bytes)
-            .map_err(|_| self.out_of_memory())
-    }
-
-    /// The error for this scene's render not fitting in memory.
-    pub fn out_of_memory(&self) -> OutOfMemory {
-        OutOfMemory {
-            width: self.scene.render.width,
-            height: self.scene.render.height,
-            bytes: self.memory_needed_bytes(),
-        }
     }
 
     /// The weight of pass `pass` in the film's average: the draft's
@@ -856,69 +767,6 @@ impl Renderer {
         splatter.learn(&mut learned);
         film.learned_points = learned;
         (paths, discarded)
-    }
-
-    /// Spectral radiance reaching the observer from (`view_zenith_deg`,
-    /// `view_azimuth_deg`) at each wavelength, W m⁻² sr⁻¹ nm⁻¹ (or per unit
-    /// irradiance with a unit sun), from `samples` paths each.
-    pub fn probe_radiance(
-        &self,
-        view_zenith_deg: f64,
-        view_azimuth_deg: f64,
-        wavelengths_nm: &[f64],
-        samples: u32,
-    ) -> Vec<SpectralEstimate> {
-        let dir = direction_from_az_el(view_azimuth_deg, 90.0 - view_zenith_deg);
-        // Any pass but the first: the scene's own options.
-        let integrator = self.integrator(1);
-        let signed = integrator.signed_estimates();
-        wavelengths_nm
-            .par_chunks(LANES)
-            .enumerate()
-            .flat_map_iter(|(chunk_index, chunk)| {
-                let mut lane_wavelengths = [chunk[0]; LANES];
-                lane_wavelengths[..chunk.len()].copy_from_slice(chunk);
-                let lanes = SpectralLanes::with_source(
-                    lane_wavelengths,
-                    chunk.len(),
-                    &self.medium,
-                    solar_source(&self.scene),
-                );
-                let mut sum = [0.0; LANES];
-                let mut sum2 = [0.0; LANES];
-                let mut discarded = [0u64; LANES];
-                for s in 0..samples {
-                    let mut rng =
-                        Rng::for_sample(self.scene.render.seed, u64::from(s), chunk_index as u64);
-                    let l = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
-                    for j in 0..LANES {
-                        let v = if l[j].is_finite() && (signed || l[j] >= 0.0) {
-                            l[j]
-                        } else {
-                            discarded[j] += 1;
-                            0.0
-                        };
-                        sum[j] += v;
-                        sum2[j] += v * v;
-                    }
-                }
-                let n = f64::from(samples);
-                chunk
-                    .iter()
-                    .enumerate()
-                    .map(|(j, &w)| {
-                        let mean = sum[j] / n;
-                        let var = (sum2[j] / n - mean * mean).max(0.0) * n / (n - 1.0).max(1.0);
-                        SpectralEstimate {
-                            wavelength_nm: w,
-                            radiance: mean,
-                            std_error: (var / n).sqrt(),
-                            discarded: discarded[j],
-                        }
-                    })
-                    .collect::<Vec<_>>()
-            })
-            .collect()
     }
 }
 

@@ -1,0 +1,87 @@
+//! How much memory a render needs, checked before any work, and the film
+//! allocated without aborting where it is not there.
+
+use super::{film_spectral, Film, Renderer};
+
+/// A render's buffers could not be allocated.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error(
+    "not enough memory for a {width}×{height} render: it needs about {:.2} GiB; \
+     choose a smaller size (--width/--height) or free memory",
+    *bytes as f64 / f64::from(1u32 << 30)
+)]
+pub struct OutOfMemory {
+    /// Image width, pixels.
+    pub width: u32,
+    /// Image height, pixels.
+    pub height: u32,
+    /// [`Renderer::memory_needed_bytes`].
+    pub bytes: u64,
+}
+
+impl Renderer {
+    pub fn new_film(&self) -> Film {
+        self.try_new_film().unwrap_or_else(|e| panic!("{e}"))
+    }
+
+    /// [`Self::new_film`], or an error saying how much memory the image
+    /// needs where its buffers cannot be allocated.
+    pub fn try_new_film(&self) -> Result<Film, OutOfMemory> {
+        let film = Film::try_new(self.scene.render.width, self.scene.render.height)
+            .map_err(|_| self.out_of_memory())?
+            .with_mirror(self.mirror);
+        let film = if self.splatting {
+            film.try_with_splats().map_err(|_| self.out_of_memory())?
+        } else {
+            film
+        };
+        match self.scene.output.spectral_bands {
+            Some(bands) => film
+                .try_with_spectral(bands)
+                .map_err(|_| self.out_of_memory()),
+            None => Ok(film),
+        }
+    }
+
+    /// About the most memory a render of this scene holds at once, bytes:
+    /// the film (XYZ sums, 12 bytes a pixel; the splat layer's as many
+    /// where the renderer splats; the adaptive plan's byte) and, on top, the
+    /// larger of the adaptive plan's working arrays (a pixel index, the
+    /// luminance, its spread, a bin and the plan: 19 bytes) and the output
+    /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3), plus the
+    /// layers' planes where the output has layers
+    /// ([`Self::layer_bytes_per_pixel`]) and a spectral image's sums and
+    /// planes ([`film_spectral::spectral_bytes_per_pixel`]). The tables the
+    /// integrator reads do not grow with the image and are left out.
+    pub fn memory_needed_bytes(&self) -> u64 {
+        let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
+        let film = 12 + if self.splatting { 12 } else { 0 } + 1;
+        let planning = 8 + 4 + 4 + 2 + 1;
+        let output = 12 + 3;
+        let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {
+            film_spectral::spectral_bytes_per_pixel(bands, self.splatting)
+        });
+        pixels * (film + planning.max(output) + spectral + self.layer_bytes_per_pixel())
+    }
+
+    /// Checks, before any work, that [`Self::memory_needed_bytes`] can be
+    /// allocated (and frees it again), so a render too large for the
+    /// machine or its limits (`ulimit -v`) stops at once with a message
+    /// rather than aborting when a buffer fails to allocate hours later.
+    pub fn check_memory(&self) -> Result<(), OutOfMemory> {
+        let bytes =
+            usize::try_from(self.memory_needed_bytes()).map_err(|_| self.out_of_memory())?;
+        Vec::<u8>::new()
+            .try_reserve_exact(bytes)
+            .map_err(|_| self.out_of_memory())
+    }
+
+    /// The error for this scene's render not fitting in memory.
+    pub fn out_of_memory(&self) -> OutOfMemory {
+        OutOfMemory {
+            width: self.scene.render.width,
+            height: self.scene.render.height,
+            bytes: self.memory_needed_bytes(),
+        }
+    }
+}
