@@ -6,6 +6,8 @@
 //! with range (−2π, π, −π, π)): u = (atan2(y, x) − π)/(−2π),
 //! v = (acos z − π)/(−π), v = 1 at the top row.
 
+mod common;
+
 use std::f64::consts::PI;
 use std::process::Command;
 
@@ -48,15 +50,7 @@ fn the_sun_is_where_blender_looks_for_it() {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let image = exr::prelude::read_first_rgba_layer_from_file(
-            &path,
-            |size, _| (size.width(), Vec::new()),
-            |(_, p): &mut (usize, Vec<f32>), _, (r, g, b, _): (f32, f32, f32, f32)| {
-                p.push(0.2126 * r + 0.7152 * g + 0.0722 * b);
-            },
-        )
-        .unwrap();
-        let (width, pixels) = &image.layer_data.channel_data.pixels;
+        let (width, pixels) = common::exr_luminance(&path);
         // The brightest pixel: the solar disc, or the aureole around it.
         let brightest = (0..pixels.len())
             .max_by(|&i, &j| pixels[i].total_cmp(&pixels[j]))

@@ -8,17 +8,10 @@ use std::path::Path;
 
 /// The scene an EXR embeds, and its mean luminance (cd/m²).
 fn read_exr(path: &Path) -> (skyrender::Scene, f64) {
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |size, _| (size.width(), Vec::new()),
-        |(_, pixels): &mut (usize, Vec<f32>), _, (r, g, b, _): (f32, f32, f32, f32)| {
-            pixels.push(0.2126 * r + 0.7152 * g + 0.0722 * b);
-        },
-    )
-    .unwrap();
-    let layer = &image.layer_data;
-    let scene = layer
-        .attributes
+    let (_, luminance) = common::exr_luminance(path);
+    let meta = exr::meta::MetaData::read_from_file(path, false).unwrap();
+    let attributes = &meta.headers[0].own_attributes;
+    let scene = attributes
         .other
         .iter()
         .find(|(k, _)| k.as_slice() == b"skyrender:scene")
@@ -29,8 +22,7 @@ fn read_exr(path: &Path) -> (skyrender::Scene, f64) {
             other => panic!("{other:?}"),
         })
         .unwrap();
-    let pixels = &layer.channel_data.pixels.1;
-    let mean = pixels.iter().map(|&y| f64::from(y)).sum::<f64>() / pixels.len() as f64;
+    let mean = luminance.iter().sum::<f64>() / luminance.len() as f64;
     (skyrender::Scene::from_toml(&scene).unwrap(), mean)
 }
 

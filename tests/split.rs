@@ -17,17 +17,9 @@ fn run_ok(args: &[&str]) {
     );
 }
 
-/// The luminance (cd/m²) of every pixel of an RGB EXR.
+/// The luminance (cd/m²) of every pixel of an RGB EXR, row-major.
 fn luminance(path: &Path) -> Vec<f64> {
-    let image = exr::prelude::read_first_rgba_layer_from_file(
-        path,
-        |_, _| Vec::new(),
-        |pixels: &mut Vec<f64>, _, (r, g, b, _): (f32, f32, f32, f32)| {
-            pixels.push(f64::from(0.2126 * r + 0.7152 * g + 0.0722 * b));
-        },
-    )
-    .unwrap();
-    image.layer_data.channel_data.pixels
+    common::exr_luminance(path).1
 }
 
 fn render(dir: &Path, name: &str, scene: &[&str], extra: &[&str]) -> PathBuf {

@@ -35,3 +35,22 @@ pub fn assert_one_line_error(out: &Output, needles: &[&str]) -> String {
     }
     err
 }
+
+/// The luminance (cd/m², Rec.709 weights) of every pixel of an RGB EXR,
+/// row-major, and the image's width. Pixels are placed by the position the
+/// reader gives: it decodes blocks of rows in parallel and hands pixels
+/// over in no fixed order.
+pub fn exr_luminance(path: &std::path::Path) -> (usize, Vec<f64>) {
+    let image = exr::prelude::read_first_rgba_layer_from_file(
+        path,
+        |size, _| (size.width(), vec![f64::NAN; size.width() * size.height()]),
+        |(width, pixels): &mut (usize, Vec<f64>),
+         position: exr::prelude::Vec2<usize>,
+         (r, g, b, _): (f32, f32, f32, f32)| {
+            pixels[position.y() * *width + position.x()] =
+                f64::from(0.2126 * r + 0.7152 * g + 0.0722 * b);
+        },
+    )
+    .expect("read the EXR");
+    image.layer_data.channel_data.pixels
+}
