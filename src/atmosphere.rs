@@ -180,18 +180,7 @@ impl Atmosphere {
         let mut lo = altitude_m;
         while lo < top {
             let hi = ((lo / 500.0).floor() * 500.0 + 500.0).min(top);
-            let n = 50;
-            let h = (hi - lo) / f64::from(n);
-            for i in 0..=n {
-                let w = if i == 0 || i == n {
-                    1.0
-                } else if i % 2 == 1 {
-                    4.0
-                } else {
-                    2.0
-                } * h
-                    / 3.0;
-                let z = lo + f64::from(i) * h;
+            for (z, w) in crate::physics::quadrature::simpson(lo, hi, 50) {
                 depth.rayleigh += w * self.rayleigh_scattering_per_m(z, wavelength_nm);
                 depth.ozone += w * self.ozone_absorption_per_m(z, wavelength_nm);
                 depth.aerosol += w * self.aerosol_extinction_per_m(z, wavelength_nm);

@@ -6,6 +6,7 @@
 
 pub mod aerosol;
 pub mod ozone;
+pub mod quadrature;
 pub mod rayleigh;
 pub mod solar_position;
 pub mod standard_atmosphere;

@@ -113,17 +113,8 @@ impl Renderer {
                 .ceil() as usize;
             // Even, for Simpson's rule.
             let panels = panels.max(MIN_PANELS).next_multiple_of(2);
-            let h = (t1 - t0) / panels as f64;
-            for i in 0..=panels {
-                let weight = if i == 0 || i == panels {
-                    1.0
-                } else if i % 2 == 1 {
-                    4.0
-                } else {
-                    2.0
-                } * h
-                    / 3.0;
-                let r = (origin + dir * (t0 + i as f64 * h)).length();
+            for (t, weight) in crate::physics::quadrature::simpson(t0, t1, panels) {
+                let r = (origin + dir * t).length();
                 for (g, lanes) in groups.iter().enumerate() {
                     let c = self.medium.coefficients(r, lanes);
                     for j in 0..LANES {
