@@ -8,6 +8,7 @@ use chrono::{DateTime, Duration, FixedOffset, SecondsFormat};
 
 use crate::output;
 use crate::physics::solar_position;
+use crate::render::exact::ExactSum;
 use crate::render::parts::{PartData, PassRange, Tile};
 use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
 use crate::scene::{Scene, SceneError};
@@ -214,13 +215,15 @@ fn write_layered_exr(
 }
 
 /// The version of the part files [`render_part_to_file`] writes.
-const PART_FORMAT: &str = "1";
+const PART_FORMAT: &str = "2";
 
 /// Renders passes `passes` of the pixels in `tile` of `scene` into a part
 /// file at `path` (OpenEXR; see [`crate::render::parts`]): per pixel the
-/// camera samples' weighted XYZ sums (`sum.X`, `sum.Y`, `sum.Z`), their
-/// weight (`weight`), the splats' sums (`splat.X`…, where the renderer
-/// splats) and the part's own image (`R`, `G`, `B`, for a look), with the
+/// camera samples' weighted XYZ sums and their weight, exact (each a
+/// 128-bit [`ExactSum`] in four `UINT` channels, least significant word
+/// first: `sum.X.0` … `sum.X.3`, …, `weight.0` … `weight.3`), the splats'
+/// sums (`splat.X`…, f32, where the renderer splats) and the part's own
+/// image (`R`, `G`, `B`, for a look), with the
 /// scene, the passes, the tile and the counts a merge needs in the header.
 /// Returns the camera paths traced.
 pub fn render_part_to_file(
@@ -245,8 +248,16 @@ pub fn render_part_to_file(
     let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
     let plane = |f: &dyn Fn(usize) -> f32| (0..image.pixels.len()).map(f).collect::<Vec<f32>>();
     let mut channels = Vec::new();
+    let mut words = Vec::new();
+    let mut push_exact = |name: &str, value: &dyn Fn(usize) -> ExactSum| {
+        for k in 0..4 {
+            let plane = (0..image.pixels.len()).map(|i| value(i).to_words()[k]);
+            words.push((format!("{name}.{k}"), plane.collect::<Vec<u32>>()));
+        }
+    };
+    push_exact("weight", &|i| part.weights[i]);
     for (c, name) in ["X", "Y", "Z"].iter().enumerate() {
-        channels.push((format!("sum.{name}"), plane(&|i| part.sums[i][c])));
+        push_exact(&format!("sum.{name}"), &|i| part.sums[i][c]);
         if !part.splat_sums.is_empty() {
             channels.push((format!("splat.{name}"), plane(&|i| part.splat_sums[i][c])));
         }
@@ -254,7 +265,6 @@ pub fn render_part_to_file(
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
         channels.push(((*name).to_owned(), plane(&|i| image.pixels[i][c])));
     }
-    channels.push(("weight".into(), part.weights.clone()));
     let metadata = vec![
         ("skyrender:part".to_owned(), PART_FORMAT.to_owned()),
         ("skyrender:version".into(), env!("CARGO_PKG_VERSION").into()),
@@ -272,11 +282,12 @@ pub fn render_part_to_file(
             part.splat_discarded.to_string(),
         ),
     ];
-    output::channels::write_exr_channels(
+    output::channels::write_exr_channels_with_words(
         path,
         image.width as usize,
         image.height as usize,
         channels,
+        words,
         &metadata,
     )?;
     Ok(paths)
@@ -330,6 +341,25 @@ fn read_part(path: &Path) -> Result<Part, String> {
         );
         Ok((0..x.len()).map(|i| [x[i], y[i], z[i]]).collect())
     };
+    let exact = |key: &str| -> Result<Vec<ExactSum>, String> {
+        let planes = (0..4)
+            .map(|k| {
+                let channel = format!("{key}.{k}");
+                file.words
+                    .get(&channel)
+                    .filter(|v| v.len() == width as usize * height as usize)
+                    .ok_or_else(|| format!("'{name}': no 32-bit integer channel {channel}"))
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok((0..planes[0].len())
+            .map(|i| ExactSum::from_words([0, 1, 2, 3].map(|k| planes[k][i])))
+            .collect())
+    };
+    let sums = {
+        let [x, y, z] = ["sum.X", "sum.Y", "sum.Z"].map(exact);
+        let (x, y, z) = (x?, y?, z?);
+        (0..x.len()).map(|i| [x[i], y[i], z[i]]).collect()
+    };
     let splat_sums = if file.channels.contains_key("splat.X") {
         triple("splat")?
     } else {
@@ -339,8 +369,8 @@ fn read_part(path: &Path) -> Result<Part, String> {
         data: PartData {
             passes,
             tile,
-            sums: triple("sum")?,
-            weights: channel("weight")?.clone(),
+            sums,
+            weights: exact("weight")?,
             splat_sums,
             splat_paths: count("skyrender:splat_paths")?,
             camera_discarded: count("skyrender:camera_discarded")?,

@@ -142,18 +142,18 @@ impl Default for CameraParams {
 }
 
 /// Most samples per pixel (passes) a scene may ask for, 2²⁰: with up to 16
-/// samples per pass (adaptive sampling) that is 2²⁴ samples, about where the
-/// film's f32 sums (24-bit significand) stop registering one more. (The
-/// splat layer, with the sun below 10°, takes ~100 splats per
-/// pixel and pass, so it reaches that after ~10⁵ passes: further passes
-/// refine the camera's part only.)
+/// samples per pass (adaptive sampling) that is 2²⁴ samples, about where an
+/// f32 sum (24-bit significand) stops registering one more — as the splat
+/// layer's sums are (the camera samples' are exact, `render::exact`). The
+/// splat layer, with the sun below 10°, takes ~100 splats per pixel and
+/// pass, so it reaches that after ~10⁵ passes: further passes refine the
+/// camera's part only.
 pub const MAX_SPP: u32 = 1 << 20;
 /// Most pixels a render may have: 16384 × 8192, the largest panoramas in
-/// common use. Memory grows with the pixels (0.78 GiB peak for an 8192 ×
-/// 4096 export, `BENCHMARKS.md`), so this is about 3 GiB, 1.5 GiB more with
-/// the sun below 10° (the film's splat layer,
-/// `render::circles`); a much larger image would fail to allocate, which
-/// aborts the program.
+/// common use. Memory grows with the pixels (68 bytes a pixel, 80 with the
+/// sun below 10° and its splat layer, `Renderer::memory_needed_bytes`), so
+/// this is about 8.5 GiB, 10 GiB at sunset; `render` checks before the
+/// first pass that it can have it (`Renderer::check_memory`).
 pub const MAX_PIXELS: u64 = 16_384 * 8_192;
 /// Largest seed: TOML's integers are signed 64-bit, so a larger one could
 /// not be read back from the scene a render embeds in its EXR.

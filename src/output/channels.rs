@@ -1,5 +1,6 @@
-//! EXR files of named float channels (`sum.X`, `weight`, …), for data
-//! other programs need not read as a picture: the parts of a split render.
+//! EXR files of named float channels (`R`, `weight`, …) and 32-bit
+//! unsigned integer channels (the exact sums of a part of a split render),
+//! for data other programs need not read as a picture.
 //! Written like every EXR here (atomically, header sorted, metadata as text
 //! attributes); read back with the channels by name.
 
@@ -23,7 +24,20 @@ pub fn write_exr_channels(
     channels: Vec<(String, Vec<f32>)>,
     metadata: &[(String, String)],
 ) -> Result<(), OutputError> {
-    write_channels(path, (width, height), channels, metadata, false)
+    write_channels(path, (width, height), channels, Vec::new(), metadata, false)
+}
+
+/// [`write_exr_channels`] with `words`, channels of 32-bit unsigned
+/// integers (OpenEXR's `UINT`), beside the float ones.
+pub fn write_exr_channels_with_words(
+    path: &Path,
+    width: usize,
+    height: usize,
+    channels: Vec<(String, Vec<f32>)>,
+    words: Vec<(String, Vec<u32>)>,
+    metadata: &[(String, String)],
+) -> Result<(), OutputError> {
+    write_channels(path, (width, height), channels, words, metadata, false)
 }
 
 /// [`write_exr_channels`] for an image: its `R`, `G`, `B` and any other
@@ -36,28 +50,35 @@ pub fn write_exr_image_channels(
     channels: Vec<(String, Vec<f32>)>,
     metadata: &[(String, String)],
 ) -> Result<(), OutputError> {
-    write_channels(path, (width, height), channels, metadata, true)
+    write_channels(path, (width, height), channels, Vec::new(), metadata, true)
 }
 
 fn write_channels(
     path: &Path,
     (width, height): (usize, usize),
     channels: Vec<(String, Vec<f32>)>,
+    words: Vec<(String, Vec<u32>)>,
     metadata: &[(String, String)],
     rec709: bool,
 ) -> Result<(), OutputError> {
-    if let Some((name, _)) = channels.iter().find(|(_, v)| v.len() != width * height) {
-        return Err(OutputError::InvalidImage {
-            path: path.to_path_buf(),
-            reason: format!("channel {name} does not hold {width}×{height} samples"),
-        });
-    }
-    let list: SmallVec<[AnyChannel<FlatSamples>; 4]> = channels
+    let all = channels
         .into_iter()
-        .map(|(name, samples)| {
-            AnyChannel::new(Text::from(name.as_str()), FlatSamples::F32(samples))
-        })
-        .collect();
+        .map(|(name, v)| (name, FlatSamples::F32(v)))
+        .chain(
+            words
+                .into_iter()
+                .map(|(name, v)| (name, FlatSamples::U32(v))),
+        );
+    let mut list: SmallVec<[AnyChannel<FlatSamples>; 4]> = SmallVec::new();
+    for (name, samples) in all {
+        if samples.len() != width * height {
+            return Err(OutputError::InvalidImage {
+                path: path.to_path_buf(),
+                reason: format!("channel {name} does not hold {width}×{height} samples"),
+            });
+        }
+        list.push(AnyChannel::new(Text::from(name.as_str()), samples));
+    }
     let layer = Layer::new(
         (width, height),
         exr_layer_attributes(path, metadata)?,
@@ -87,8 +108,10 @@ pub struct ChannelFile {
     pub width: usize,
     /// Height in pixels.
     pub height: usize,
-    /// Samples by channel name (f16 and u32 channels converted to f32).
+    /// Samples by channel name (f16 channels converted to f32).
     pub channels: HashMap<String, Vec<f32>>,
+    /// The 32-bit unsigned integer channels by name.
+    pub words: HashMap<String, Vec<u32>>,
     /// Text attributes by name (UTF-8).
     pub text: HashMap<String, String>,
 }
@@ -104,12 +127,19 @@ pub fn read_exr_channels(path: &Path) -> Result<ChannelFile, String> {
         ..ChannelFile::default()
     };
     for channel in layer.channel_data.list {
-        let samples = match channel.sample_data {
-            FlatSamples::F32(v) => v,
-            FlatSamples::F16(v) => v.into_iter().map(f32::from).collect(),
-            FlatSamples::U32(v) => v.into_iter().map(|u| u as f32).collect(),
-        };
-        file.channels.insert(channel.name.to_string(), samples);
+        let name = channel.name.to_string();
+        match channel.sample_data {
+            FlatSamples::F32(v) => {
+                file.channels.insert(name, v);
+            }
+            FlatSamples::F16(v) => {
+                file.channels
+                    .insert(name, v.into_iter().map(f32::from).collect());
+            }
+            FlatSamples::U32(v) => {
+                file.words.insert(name, v);
+            }
+        }
     }
     for (key, value) in &layer.attributes.other {
         if let AttributeValue::Text(t) = value {

@@ -35,6 +35,7 @@
 
 use rayon::prelude::*;
 
+use super::exact::ExactSum;
 use crate::output::RgbImage;
 use crate::spectrum::xyz_to_rec709;
 
@@ -116,11 +117,12 @@ impl Mirror {
 pub struct Film {
     pub width: u32,
     pub height: u32,
-    /// Weighted sum of XYZ (cd m⁻² for Y) over the row's passes.
-    pub(crate) xyz_sum: Vec<[f32; 3]>,
+    /// Weighted sum of XYZ (cd m⁻² for Y) over the row's passes, exact
+    /// (so that parts of a render merge bit for bit, [`super::parts`]).
+    pub(crate) xyz_sum: Vec<[ExactSum; 3]>,
     pub(crate) row_passes: Vec<u32>,
     /// Sum of the weights of the row's passes (one sample each).
-    pub(crate) row_weights: Vec<f64>,
+    pub(crate) row_weights: Vec<ExactSum>,
     /// Samples per pass of each pixel under the plan; empty before it.
     pub(crate) plan: Vec<u8>,
     /// Passes the row took under the plan (each of a pixel's m samples has
@@ -148,7 +150,7 @@ pub struct Film {
     pub(crate) region: Option<super::parts::Tile>,
     /// Each pixel's total weight where it is not a function of its row
     /// (a film merged from parts); empty otherwise.
-    pub(crate) pixel_weights: Vec<f64>,
+    pub(crate) pixel_weights: Vec<ExactSum>,
     /// The spectral layer, where a spectral image is asked for
     /// ([`super::film_spectral`]).
     pub(crate) spectral: Option<super::film_spectral::SpectralFilm>,
@@ -177,9 +179,9 @@ impl Film {
         Ok(Self {
             width,
             height,
-            xyz_sum: try_filled(width as usize * height as usize, [0.0; 3])?,
+            xyz_sum: try_filled(width as usize * height as usize, [ExactSum::ZERO; 3])?,
             row_passes: try_filled(height as usize, 0)?,
-            row_weights: try_filled(height as usize, 0.0)?,
+            row_weights: try_filled(height as usize, ExactSum::ZERO)?,
             plan: Vec::new(),
             row_planned_passes: try_filled(height as usize, 0)?,
             discarded: 0,
@@ -261,12 +263,18 @@ impl Film {
 
     /// Total weight of the samples of pixel `index` (row-major).
     pub(crate) fn pixel_weight(&self, index: usize) -> f64 {
+        self.exact_pixel_weight(index).to_f64()
+    }
+
+    /// [`Self::pixel_weight`], exact.
+    pub(crate) fn exact_pixel_weight(&self, index: usize) -> ExactSum {
         if let Some(&w) = self.pixel_weights.get(index) {
             return w;
         }
         let y = index / self.width as usize;
-        let extra = f64::from(self.samples_per_pass(index) - 1);
-        self.row_weights[y] + extra * f64::from(self.row_planned_passes[y])
+        let extra = u64::from(self.samples_per_pass(index) - 1);
+        let planned = extra * u64::from(self.row_planned_passes[y]);
+        self.row_weights[y] + ExactSum::from_f64(planned as f64)
     }
 
     /// The image at pixel `index` (row-major). With splats, a row that
@@ -307,10 +315,10 @@ impl Film {
 
     /// With splats, empties row `y`'s sums of the draft pass before its
     /// first full pass (see [`Self::mean`]).
-    pub(crate) fn drop_draft(row: &mut [[f32; 3]], passes: u32, row_weight: &mut f64) {
+    pub(crate) fn drop_draft(row: &mut [[ExactSum; 3]], passes: u32, row_weight: &mut ExactSum) {
         if passes == 1 {
-            row.fill([0.0; 3]);
-            *row_weight = 0.0;
+            row.fill([ExactSum::ZERO; 3]);
+            *row_weight = ExactSum::ZERO;
         }
     }
 
@@ -327,14 +335,15 @@ impl Film {
 
     /// Mean XYZ of the camera samples of pixel `index` and of `partner`.
     fn pixel_mean(&self, index: usize, partner: Option<usize>) -> [f64; 3] {
-        let mut sum = self.xyz_sum[index].map(f64::from);
-        let mut weight = self.pixel_weight(index);
+        let mut sum = self.xyz_sum[index];
+        let mut weight = self.exact_pixel_weight(index);
         if let Some(p) = partner {
             for (s, v) in sum.iter_mut().zip(self.xyz_sum[p]) {
-                *s += f64::from(v);
+                *s += v;
             }
-            weight += self.pixel_weight(p);
+            weight += self.exact_pixel_weight(p);
         }
+        let (sum, weight) = (sum.map(ExactSum::to_f64), weight.to_f64());
         if weight > 0.0 {
             sum.map(|s| s / weight)
         } else {
@@ -551,9 +560,9 @@ mod tests {
     fn with_splats_a_row_shows_its_draft_until_its_first_full_pass() {
         // 2×2 film; the draft pass gave every pixel XYZ 2 at weight 0.5.
         let mut film = Film::new(2, 2).try_with_splats().unwrap();
-        film.xyz_sum.fill([1.0; 3]);
+        film.xyz_sum.fill([ExactSum::from_f64(1.0); 3]);
         film.row_passes.fill(1);
-        film.row_weights.fill(0.5);
+        film.row_weights.fill(ExactSum::from_f64(0.5));
         // Two splatted paths put XYZ 4 into pixel 0 (mean 2 there).
         film.add_splats(
             &[super::super::circles::Splat {
@@ -572,8 +581,8 @@ mod tests {
             film.row_passes[0],
             &mut film.row_weights[0],
         );
-        film.xyz_sum[..w].fill([3.0; 3]);
-        film.row_weights[0] = 1.0;
+        film.xyz_sum[..w].fill([ExactSum::from_f64(3.0); 3]);
+        film.row_weights[0] = ExactSum::from_f64(1.0);
         film.row_passes[0] = 2;
         assert_eq!(film.xyz(0, 0), [5.0; 3]);
         assert_eq!(film.xyz(1, 0), [3.0; 3]);
@@ -587,9 +596,9 @@ mod tests {
         assert_eq!(film.xyz(1, 0), [3.0; 3]);
         // Without splats the draft is one sample among the others.
         let mut plain = Film::new(2, 1);
-        plain.xyz_sum.fill([1.0; 3]);
+        plain.xyz_sum.fill([ExactSum::from_f64(1.0); 3]);
         plain.row_passes.fill(2);
-        plain.row_weights.fill(1.5);
+        plain.row_weights.fill(ExactSum::from_f64(1.5));
         assert_eq!(plain.xyz(0, 0), [1.0 / 1.5; 3]);
     }
 
@@ -708,10 +717,10 @@ mod tests {
     fn film_of(luminance: &[f32], w: u32, h: u32, mirror: Option<Mirror>) -> Film {
         let mut film = Film::new(w, h).with_mirror(mirror);
         for (sum, &v) in film.xyz_sum.iter_mut().zip(luminance) {
-            *sum = [0.0, v, 0.0];
+            *sum = [0.0, f64::from(v), 0.0].map(ExactSum::from_f64);
         }
         film.row_passes.fill(1);
-        film.row_weights.fill(1.0);
+        film.row_weights.fill(ExactSum::from_f64(1.0));
         film
     }
 
@@ -732,7 +741,7 @@ mod tests {
             film.plan = (0..w * h).map(|i| 1 + (i % 3) as u8).collect();
             for y in (0..h as usize).step_by(2) {
                 film.row_passes[y] = 2;
-                film.row_weights[y] = 2.0;
+                film.row_weights[y] = ExactSum::from_f64(2.0);
                 film.row_planned_passes[y] = 1;
             }
             let rgb = film.to_rgb();

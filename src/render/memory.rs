@@ -44,8 +44,9 @@ impl Renderer {
     }
 
     /// About the most memory a render of this scene holds at once, bytes:
-    /// the film (XYZ sums, 12 bytes a pixel; the splat layer's as many
-    /// where the renderer splats; the adaptive plan's byte) and, on top, the
+    /// the film (exact XYZ sums, 48 bytes a pixel, [`super::exact`]; the
+    /// splat layer's f32 sums, 12, where the renderer splats; the adaptive
+    /// plan's byte) and, on top, the
     /// larger of the adaptive plan's working arrays (a pixel index, the
     /// luminance, its spread, a bin and the plan: 19 bytes) and the output
     /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3), plus the
@@ -55,7 +56,7 @@ impl Renderer {
     /// integrator reads do not grow with the image and are left out.
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
-        let film = 12 + if self.splatting { 12 } else { 0 } + 1;
+        let film = 48 + if self.splatting { 12 } else { 0 } + 1;
         let planning = 8 + 4 + 4 + 2 + 1;
         let output = 12 + 3;
         let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {

@@ -13,6 +13,7 @@ pub mod circles;
 pub mod columns;
 pub mod control;
 pub mod directions;
+pub mod exact;
 pub mod film;
 pub mod film_spectral;
 pub mod guide;
@@ -52,6 +53,7 @@ use crate::rng::{mix64, Rng, SOBOL_POINTS};
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
 use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
+use exact::ExactSum;
 use film_spectral::SampleLanes;
 use sunlight::CameraDensities;
 
@@ -622,7 +624,7 @@ impl Renderer {
                         match self.sample_pixel_lanes(integrator, x as u32, y as u32, sample) {
                             Some((xyz, lanes)) => {
                                 for c in 0..3 {
-                                    sum[c] += (weight * xyz[c]) as f32;
+                                    sum[c] += ExactSum::from_f64(weight * xyz[c]);
                                 }
                                 if bands > 0 {
                                     lanes.add_to(&mut spectral[x * bands..(x + 1) * bands], weight);
@@ -636,7 +638,7 @@ impl Renderer {
                     row_paths += count;
                 }
                 *passes += 1;
-                *row_weight += weight;
+                *row_weight += ExactSum::from_f64(weight);
                 if planned {
                     *planned_passes += 1;
                 }
@@ -907,7 +909,7 @@ mod tests {
         // The film's pixel = Σ w·sample / Σ w over the pixel's samples: the
         // draft (pass 0) weighted by `draft_weight`, every later sample 1 — with adaptive
         // sampling the m samples a planned pixel takes per pass from pass 2
-        // on, numbered consecutively (f32 sums: 1e-5 relative).
+        // on, numbered consecutively (exact sums: f64 rounding only).
         let renderer = small_sunset(true);
         let mut film = renderer.new_film();
         for pass in 0..4 {
@@ -944,7 +946,7 @@ mod tests {
                 for c in 0..3 {
                     let expected = sum[c] / weights;
                     assert!(
-                        (got[c] - expected).abs() <= 1e-5 * expected.abs() + 1e-9,
+                        (got[c] - expected).abs() <= 1e-12 * expected.abs() + 1e-18,
                         "pixel ({x}, {y}) channel {c}: {} vs {expected}",
                         got[c]
                     );

@@ -3,8 +3,8 @@
 //!
 //! A part renders the passes `passes` of the pixels in `tile` into a film
 //! of the whole image and keeps, per pixel, the film's raw state: the
-//! weighted sums of the camera samples (XYZ, f32 as the film holds them),
-//! their total weight, and the sums of the splats. The merge adds those up
+//! weighted sums of the camera samples (XYZ, exact as the film holds them),
+//! their total weight (exact), and the sums of the splats (f32). The merge adds those up
 //! and reads the image from the sum as the film itself does, so:
 //!
 //! - **Tiles** of one pass range give the single render's pixels bit for
@@ -19,12 +19,14 @@
 //! - **Pass ranges** take the random numbers of their passes (a pass's
 //!   numbers depend on its index alone; with adaptive sampling a later
 //!   part numbers its samples apart, see `Renderer::render_pass`). The
-//!   merge adds the parts' f32 sums in another order than one film adds
-//!   its passes, so the image equals the single render's to float rounding
-//!   (a few 1e-7 relative) without adaptive sampling and without splats; a
-//!   part's splat density is learned from its own passes only and its plan
-//!   from its own image, so with those it is statistically equivalent.
+//!   camera samples' sums and weights are exact ([`super::exact`]: integer
+//!   fixed point, so their grouping does not matter), so without adaptive
+//!   sampling and without splats the merged image is the single render's
+//!   bit for bit. A part's splat density is learned from its own passes
+//!   only and its plan from its own image, so with those it is
+//!   statistically equivalent.
 
+use super::exact::ExactSum;
 use super::film::{try_filled, Film, Mirror};
 
 /// A rectangle of pixels: columns `x..x + width`, rows `y..y + height`.
@@ -186,10 +188,10 @@ pub struct PartData {
     pub passes: PassRange,
     /// Its pixels.
     pub tile: Tile,
-    /// Weighted sums of the camera samples' XYZ (Y in cd m⁻²).
-    pub sums: Vec<[f32; 3]>,
-    /// Total weight of each pixel's camera samples.
-    pub weights: Vec<f32>,
+    /// Weighted sums of the camera samples' XYZ (Y in cd m⁻²), exact.
+    pub sums: Vec<[ExactSum; 3]>,
+    /// Total weight of each pixel's camera samples, exact.
+    pub weights: Vec<ExactSum>,
     /// Sums of the splats (empty where the render does not splat).
     pub splat_sums: Vec<[f32; 3]>,
     /// Paths splatted (over the whole image).
@@ -220,25 +222,20 @@ impl Film {
             .unwrap_or_else(|| Tile::whole(self.width, self.height));
         let inside = |i: usize| tile.contains((i % w) as u32, (i / w) as u32);
         let n = self.xyz_sum.len();
-        let pick = |v: &[[f32; 3]]| -> Vec<[f32; 3]> {
-            (0..v.len())
-                .map(|i| if inside(i) { v[i] } else { [0.0; 3] })
-                .collect()
-        };
         PartData {
             passes,
             tile,
-            sums: pick(&self.xyz_sum),
+            sums: pick(&self.xyz_sum, inside),
             weights: (0..n)
                 .map(|i| {
                     if inside(i) {
-                        self.pixel_weight(i) as f32
+                        self.exact_pixel_weight(i)
                     } else {
-                        0.0
+                        ExactSum::ZERO
                     }
                 })
                 .collect(),
-            splat_sums: pick(&self.splat_sum),
+            splat_sums: pick(&self.splat_sum, inside),
             splat_paths: self.splat_paths,
             camera_discarded: self.discarded - self.splat_discarded,
             splat_discarded: self.splat_discarded,
@@ -266,7 +263,7 @@ impl Film {
             film = film.try_with_splats()?;
         }
         film.row_passes.fill(spp);
-        let mut weights = try_filled(film.xyz_sum.len(), 0.0f64)?;
+        let mut weights = try_filled(film.xyz_sum.len(), ExactSum::ZERO)?;
         let mut counted_ranges = Vec::new();
         let w = width as usize;
         for part in parts {
@@ -279,7 +276,7 @@ impl Film {
                     for c in 0..3 {
                         film.xyz_sum[i][c] += part.sums[i][c];
                     }
-                    *weight += f64::from(part.weights[i]);
+                    *weight += part.weights[i];
                 }
                 if splats {
                     for c in 0..3 {
@@ -297,6 +294,13 @@ impl Film {
         film.pixel_weights = weights;
         Ok(film)
     }
+}
+
+/// `v` where `inside` holds, zero elsewhere.
+fn pick<T: Copy + Default>(v: &[[T; 3]], inside: impl Fn(usize) -> bool) -> Vec<[T; 3]> {
+    (0..v.len())
+        .map(|i| if inside(i) { v[i] } else { [T::default(); 3] })
+        .collect()
 }
 
 /// Checks that `parts` (pass range, tile) cover passes `0..spp` of a
