@@ -137,6 +137,7 @@ pub fn render_to_file(
         write_layered_exr(
             scene,
             &renderer,
+            &film,
             path,
             &image,
             image_metadata(scene, &image, total, paths, film.discarded),
@@ -176,11 +177,13 @@ pub fn check_spectral_output(scene: &Scene, path: &Path) -> Result<(), ExportErr
 }
 
 /// Writes `image` (`R`, `G`, `B`) and the channels of the scene's layers
-/// ([`crate::render::layers`]) into one EXR at `path`, atomically, with the
-/// render's `metadata` and the layers' names (`skyrender:layers`).
+/// (from `film`'s paths, [`crate::render::film_layers`], and from the view
+/// rays, [`crate::render::layers`]) into one EXR at `path`, atomically,
+/// with the render's `metadata` and the layers' names (`skyrender:layers`).
 fn write_layered_exr(
     scene: &Scene,
     renderer: &Renderer,
+    film: &crate::render::Film,
     path: &Path,
     image: &output::RgbImage,
     mut metadata: Vec<(String, String)>,
@@ -202,6 +205,20 @@ fn write_layered_exr(
             )
         })
         .collect();
+    let images = film
+        .try_layer_images()
+        .map_err(|_| renderer.out_of_memory())?;
+    if let Some(images) = images {
+        for (layer, image) in crate::render::film_layers::PATH_LAYERS.iter().zip(images) {
+            if !layers.iter().any(|l| l == layer) {
+                continue;
+            }
+            let names = crate::render::layers::channel_names(layer);
+            for (c, name) in names.iter().enumerate() {
+                channels.push(((*name).to_owned(), image.iter().map(|p| p[c]).collect()));
+            }
+        }
+    }
     channels.extend(renderer.layer_channels(&layers));
     metadata.push(("skyrender:layers".into(), layers.join(",")));
     output::channels::write_exr_image_channels(
@@ -242,6 +259,13 @@ pub fn render_part_to_file(
         .into());
     }
     let renderer = Renderer::new(scene)?;
+    if renderer.path_layers() {
+        return Err(SceneError::new(
+            "output",
+            "the sky, sun and ground layers come from a whole render: a part of a split render holds none (render it whole)",
+        )
+        .into());
+    }
     let (film, paths) = service::render_part_blocking(&renderer, passes, tile, cancel, progress)?
         .ok_or(ExportError::Cancelled)?;
     let part = film.part_data(passes);

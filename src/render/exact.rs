@@ -15,7 +15,7 @@
 //! renderer draws and below an f32's relative step (6 × 10⁻⁸) for any
 //! value above 10⁻¹² — the rounding adds less than an f32 sum did.
 
-use std::ops::{Add, AddAssign};
+use std::ops::{Add, AddAssign, Sub};
 
 /// 2⁶⁴: one unit of the sum's integer is 1/`SCALE`.
 const SCALE: f64 = 18_446_744_073_709_551_616.0;
@@ -72,6 +72,14 @@ impl Add for ExactSum {
     }
 }
 
+impl Sub for ExactSum {
+    type Output = Self;
+
+    fn sub(self, other: Self) -> Self {
+        Self(self.0.saturating_sub(other.0))
+    }
+}
+
 impl std::iter::Sum for ExactSum {
     fn sum<I: Iterator<Item = Self>>(iter: I) -> Self {
         iter.fold(Self::ZERO, Add::add)
@@ -97,6 +105,7 @@ mod tests {
             let b: ExactSum = values[split..].iter().map(|&v| ExactSum::from_f64(v)).sum();
             assert_eq!(a + b, whole);
             assert_eq!(b + a, whole);
+            assert_eq!(whole - a, b);
         }
         let float: f64 = values.iter().sum();
         assert!((whole.to_f64() - float).abs() <= 1e-12 * float);

@@ -154,6 +154,9 @@ pub struct Film {
     /// The spectral layer, where a spectral image is asked for
     /// ([`super::film_spectral`]).
     pub(crate) spectral: Option<super::film_spectral::SpectralFilm>,
+    /// The sums of the `sky`, `sun` and `ground` layers, where they are
+    /// asked for ([`super::film_layers`]).
+    pub(crate) layers: Option<super::film_layers::LayerSums>,
 }
 
 /// `n` copies of `value`, or an error where the memory is not there (not
@@ -194,6 +197,7 @@ impl Film {
             region: None,
             pixel_weights: Vec::new(),
             spectral: None,
+            layers: None,
         })
     }
 
@@ -283,31 +287,41 @@ impl Film {
     /// gone from the row (`Self::drop_draft`) and the image is the camera
     /// samples' mean plus the splats'.
     fn mean(&self, index: usize) -> [f64; 3] {
-        if !self.splats() {
-            return self.camera_mean(index);
-        }
+        self.mean_with(index, &|i| self.xyz_sum[i], &|_| true)
+    }
+
+    /// [`Self::mean`] of the camera sums `sums(i)` (a part of the camera
+    /// samples' XYZ sums) and of the splats of the pixels `i` where
+    /// `splats(i)` holds: the same reading for a layer of the image as for
+    /// the whole ([`super::film_layers`]).
+    pub(crate) fn mean_with(
+        &self,
+        index: usize,
+        sums: &dyn Fn(usize) -> [ExactSum; 3],
+        splats: &dyn Fn(usize) -> bool,
+    ) -> [f64; 3] {
         let (w, h) = (self.width as usize, self.height as usize);
-        let full = |i: usize| self.row_passes[i / w] >= 2;
-        if !full(index) {
-            return self.pixel_mean(index, None);
-        }
-        // A mirror partner still on the draft would mix the draft's
-        // estimate into this pixel's.
         let partner = self
             .mirror
             .map(|m| m.partner(index % w, index / w, w, h))
-            .filter(|&p| p != index && full(p));
-        let mut mean = self.pixel_mean(index, partner);
+            .filter(|&p| p != index);
+        if !self.splats() {
+            return self.pixel_mean(index, partner, sums);
+        }
+        let full = |i: usize| self.row_passes[i / w] >= 2;
+        if !full(index) {
+            return self.pixel_mean(index, None, sums);
+        }
+        // A mirror partner still on the draft would mix the draft's
+        // estimate into this pixel's.
+        let partner = partner.filter(|&p| full(p));
+        let mut mean = self.pixel_mean(index, partner, sums);
         if self.splat_paths > 0 {
-            let (sum, n) = match partner {
-                Some(p) => {
-                    let (a, b) = (self.splat_sum[index], self.splat_sum[p]);
-                    ([0, 1, 2].map(|c| f64::from(a[c]) + f64::from(b[c])), 2.0)
+            let n = if partner.is_some() { 2.0 } else { 1.0 };
+            for p in std::iter::once(index).chain(partner).filter(|&p| splats(p)) {
+                for (m, s) in mean.iter_mut().zip(self.splat_sum[p]) {
+                    *m += f64::from(s) / (n * self.splat_paths as f64);
                 }
-                None => (self.splat_sum[index].map(f64::from), 1.0),
-            };
-            for (m, s) in mean.iter_mut().zip(sum) {
-                *m += s / (n * self.splat_paths as f64);
             }
         }
         mean
@@ -330,15 +344,21 @@ impl Film {
             .mirror
             .map(|m| m.partner(index % w, index / w, w, h))
             .filter(|&p| p != index);
-        self.pixel_mean(index, partner)
+        self.pixel_mean(index, partner, &|i| self.xyz_sum[i])
     }
 
-    /// Mean XYZ of the camera samples of pixel `index` and of `partner`.
-    fn pixel_mean(&self, index: usize, partner: Option<usize>) -> [f64; 3] {
-        let mut sum = self.xyz_sum[index];
+    /// Mean XYZ of the camera samples of pixel `index` and of `partner`,
+    /// their sums read by `sums`.
+    fn pixel_mean(
+        &self,
+        index: usize,
+        partner: Option<usize>,
+        sums: &dyn Fn(usize) -> [ExactSum; 3],
+    ) -> [f64; 3] {
+        let mut sum = sums(index);
         let mut weight = self.exact_pixel_weight(index);
         if let Some(p) = partner {
-            for (s, v) in sum.iter_mut().zip(self.xyz_sum[p]) {
+            for (s, v) in sum.iter_mut().zip(sums(p)) {
                 *s += v;
             }
             weight += self.exact_pixel_weight(p);

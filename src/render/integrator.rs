@@ -505,6 +505,31 @@ const DIRECTION_UNIFORMS: usize = 5;
 /// Radiance estimate per lane (W m⁻² sr⁻¹ nm⁻¹, or per unit irradiance).
 pub type Radiance = Lanes;
 
+/// A path's light per lane as it is gathered: the total, and the part of
+/// it that is the sun's disc seen straight along the camera ray (the `sun`
+/// layer, [`super::film_layers`]). Reads and writes as its total.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Light {
+    /// All the light.
+    pub total: Radiance,
+    /// The sun's disc through the air along the camera ray, not scattered.
+    pub disc: Radiance,
+}
+
+impl std::ops::Deref for Light {
+    type Target = Radiance;
+
+    fn deref(&self) -> &Radiance {
+        &self.total
+    }
+}
+
+impl std::ops::DerefMut for Light {
+    fn deref_mut(&mut self) -> &mut Radiance {
+        &mut self.total
+    }
+}
+
 /// Scattering vertices become paths longer than this only through Russian
 /// roulette with survival ≤ 0.9, so paths end with probability one.
 const ROULETTE_CAP_DEPTH: u32 = 64;
@@ -716,7 +741,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         dir: DVec3,
         beta: &Lanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
     ) {
         let y = at.frame.basis(dir);
         let degrees = at.picked.degrees(&y);
@@ -771,14 +796,14 @@ impl<'a> Integrator<'a> {
                 let dir = frame.direction(cos_theta, phi);
                 let y = frame.basis(dir);
                 for (set, lanes) in sets.iter().enumerate() {
-                    let mut radiance = [0.0; LANES];
+                    let mut radiance = Light::default();
                     let from = (origin, dir, 1, 1.0);
                     if options.sunlight_samples() > 0 && single.guide.is_some() {
                         single.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
                     } else {
                         single.trace(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
                     }
-                    for (j, l) in radiance.iter().enumerate() {
+                    for (j, l) in radiance.total.iter().enumerate() {
                         let n = set * LANES + j;
                         if n < NODES && l.is_finite() {
                             for (c, y) in coefficients[n].iter_mut().zip(&y) {
@@ -883,7 +908,14 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         rng: &mut Rng,
     ) -> Radiance {
-        let mut radiance: Lanes = [0.0; LANES];
+        self.light(origin, dir, lanes, rng).total
+    }
+
+    /// [`Self::radiance`] with the part of it that is the sun's disc seen
+    /// straight along `dir` (through the air, not scattered), from the
+    /// same path.
+    pub fn light(&self, origin: DVec3, dir: DVec3, lanes: &SpectralLanes, rng: &mut Rng) -> Light {
+        let mut radiance = Light::default();
         let opts = self.options;
         let camera = self
             .camera
@@ -963,14 +995,14 @@ impl<'a> Integrator<'a> {
             .sum::<f64>()
             / camera_dirs.len() as f64;
         let pdf = self.direction_mixture_pdf(c, lanes, dir, lobes, at.as_ref().filter(|_| guides));
-        let mut radiance = [0.0; LANES];
+        let mut radiance = Light::default();
         let start = (x, dir, 1, 1.0);
         if opts.sunlight_samples() > 0 {
             self.trace_sunlit(start, [1.0; LANES], lanes, &mut radiance, rng);
         } else {
             self.trace(start, [1.0; LANES], lanes, &mut radiance, rng);
         }
-        Some((dir, pdf, radiance))
+        Some((dir, pdf, radiance.total))
     }
 
     /// [`Self::transmittance_to`] from a fixed start (the observer) along
@@ -1035,13 +1067,13 @@ impl<'a> Integrator<'a> {
         camera: &CameraDensities,
         dir: DVec3,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> Branches {
         let origin = camera.origin_m();
         let beta = [1.0; LANES];
         let Some(span) = self.medium.span(origin, dir) else {
-            self.add_sun_disc(dir, &beta, lanes, radiance);
+            self.add_sun_disc(dir, 0, &beta, lanes, radiance);
             return [None; MAX_BRANCHES];
         };
         let density = camera.density(self.medium, dir, span);
@@ -1085,7 +1117,7 @@ impl<'a> Integrator<'a> {
         (origin, dir, depth, split): Start,
         beta: Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) {
         let window = self.importance(origin).map(|reference| Window {
@@ -1116,7 +1148,7 @@ impl<'a> Integrator<'a> {
         next: Next<'a>,
         (depth, split, window): (u32, f64, Option<Window>),
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) {
         let mut next = Some(next);
@@ -1182,7 +1214,7 @@ impl<'a> Integrator<'a> {
         copies: usize,
         walk: (u32, f64, Option<Window>),
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> (Vertex, Option<GuideAt<'a>>) {
         let share = 1.0 / copies as f64;
@@ -1289,7 +1321,7 @@ impl<'a> Integrator<'a> {
         (origin, dir, depth, at): (DVec3, DVec3, u32, Option<GuideAt<'a>>),
         beta: &Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> Option<Next<'a>> {
         let segment = self.segment(origin, dir, depth, beta, lanes, radiance)?;
@@ -1343,7 +1375,7 @@ impl<'a> Integrator<'a> {
         distribution: Option<&dyn SegmentDensity>,
         (n, branches): (usize, usize),
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> Branches {
         let opts = self.options;
@@ -1496,7 +1528,7 @@ impl<'a> Integrator<'a> {
                 }
             }
         } else if depth == 0 {
-            self.add_sun_disc(dir, &through, lanes, radiance);
+            self.add_sun_disc(dir, 0, &through, lanes, radiance);
         }
         next
     }
@@ -1511,11 +1543,11 @@ impl<'a> Integrator<'a> {
         depth: u32,
         beta: &Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
     ) -> Option<Segment> {
         let Some(span) = self.medium.span(origin, dir) else {
             if depth == 0 {
-                self.add_sun_disc(dir, beta, lanes, radiance);
+                self.add_sun_disc(dir, 0, beta, lanes, radiance);
             }
             return None;
         };
@@ -1537,7 +1569,7 @@ impl<'a> Integrator<'a> {
         segment: &Segment,
         beta: &Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> Option<Next<'a>> {
         let density = at.density(self.medium, segment.dir, segment.span);
@@ -1559,7 +1591,7 @@ impl<'a> Integrator<'a> {
         segment: &Segment,
         beta: &Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> Option<Next<'a>> {
         let &Segment {
@@ -1661,12 +1693,24 @@ impl<'a> Integrator<'a> {
         (new_dir, at)
     }
 
-    /// The sun's disc seen along `dir` through transmittance `beta`.
-    fn add_sun_disc(&self, dir: DVec3, beta: &Lanes, lanes: &SpectralLanes, radiance: &mut Lanes) {
+    /// The sun's disc seen along `dir` through transmittance `beta` after
+    /// `depth` scatterings (at depth 0, straight along the camera ray:
+    /// [`Light::disc`] too).
+    fn add_sun_disc(
+        &self,
+        dir: DVec3,
+        depth: u32,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Light,
+    ) {
         if dir.dot(self.sun_direction) >= self.cos_sun_radius {
             let l_sun = self.sun_radiance(lanes);
             for j in 0..LANES {
-                radiance[j] += beta[j] * l_sun[j];
+                radiance.total[j] += beta[j] * l_sun[j];
+                if depth == 0 {
+                    radiance.disc[j] += beta[j] * l_sun[j];
+                }
             }
         }
     }
@@ -1680,7 +1724,7 @@ impl<'a> Integrator<'a> {
         depth: u32,
         beta: &Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> Option<Vertex> {
         self.ground_direct(normal, depth, beta, lanes, radiance, rng);
@@ -1705,7 +1749,7 @@ impl<'a> Integrator<'a> {
         depth: u32,
         beta: &Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) {
         let opts = self.options;
@@ -1832,7 +1876,7 @@ impl<'a> Integrator<'a> {
         (origin, dir, depth, split): Start,
         beta: Lanes,
         lanes: &SpectralLanes,
-        radiance: &mut Lanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) {
         let active = lanes.active;
@@ -1919,7 +1963,7 @@ impl<'a> Integrator<'a> {
                 // Escaped to space. The disc is counted here only where no
                 // next-event estimate already accounted for it.
                 if depth == 0 || !opts.next_event_estimation {
-                    self.add_sun_disc(dir, &beta, lanes, radiance);
+                    self.add_sun_disc(dir, depth, &beta, lanes, radiance);
                 }
                 break;
             }

@@ -45,6 +45,9 @@ const PANEL_LENGTH_M: f64 = 20_000.0;
 /// The channels of a layer by name (as in [`crate::scene::OUTPUT_LAYERS`]).
 pub fn channel_names(layer: &str) -> &'static [&'static str] {
     match layer {
+        "sky" => &["sky.R", "sky.G", "sky.B"],
+        "sun" => &["sun.R", "sun.G", "sun.B"],
+        "ground" => &["ground.R", "ground.G", "ground.B"],
         "transmittance" => &["transmittance.R", "transmittance.G", "transmittance.B", "A"],
         "Z" => &["Z"],
         _ => &[],
@@ -68,7 +71,36 @@ impl Renderer {
             return 0;
         }
         let channels: usize = layers.iter().map(|l| channel_names(l).len()).sum();
-        4 * (3 + channels as u64)
+        // The path layers' sums: the ground's exact XYZ (48 bytes) and
+        // whether each pixel's centre sees the ground (the sun's few sums
+        // are left out).
+        let sums = if self.path_layers() { 48 + 1 } else { 0 };
+        4 * (3 + channels as u64) + sums
+    }
+
+    /// Whether the output has any of the layers estimated from the paths
+    /// ([`super::film_layers::PATH_LAYERS`]).
+    pub fn path_layers(&self) -> bool {
+        self.scene
+            .output
+            .layers
+            .iter()
+            .any(|l| super::film_layers::PATH_LAYERS.contains(&l.as_str()))
+    }
+
+    /// Per pixel (row-major), whether the view ray through its centre
+    /// meets the ground; `false` where no ray goes through it.
+    pub(crate) fn centre_ground(&self) -> Vec<bool> {
+        let (width, height) = (self.scene.render.width, self.scene.render.height);
+        (0..height)
+            .flat_map(|y| (0..width).map(move |x| (x, y)))
+            .map(|(x, y)| {
+                self.camera
+                    .direction(f64::from(x) + 0.5, f64::from(y) + 0.5)
+                    .and_then(|dir| self.medium.span(self.observer_m, dir))
+                    .is_some_and(|s| s.hits_ground)
+            })
+            .collect()
     }
 
     /// Spectral transmittance from the observer along `dir` (unit) to the
@@ -131,6 +163,9 @@ impl Renderer {
     /// each once, in their order), each `width`×`height` row-major, named
     /// as in [`channel_names`].
     pub fn layer_channels(&self, layers: &[String]) -> Vec<(String, Vec<f32>)> {
+        if !layers.iter().any(|l| l == "transmittance" || l == "Z") {
+            return Vec::new();
+        }
         let (width, height) = (self.scene.render.width, self.scene.render.height);
         let (from, to) = self.cmf.range_nm();
         let count = ((to - from) / STEP_NM).floor() as usize + 1;

@@ -35,6 +35,12 @@ impl Renderer {
         } else {
             film
         };
+        let film = if self.path_layers() {
+            film.try_with_layers(self.centre_ground())
+                .map_err(|_| self.out_of_memory())?
+        } else {
+            film
+        };
         match self.scene.output.spectral_bands {
             Some(bands) => film
                 .try_with_spectral(bands)

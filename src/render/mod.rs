@@ -15,6 +15,7 @@ pub mod control;
 pub mod directions;
 pub mod exact;
 pub mod film;
+pub mod film_layers;
 pub mod film_spectral;
 pub mod guide;
 pub mod integrator;
@@ -54,6 +55,7 @@ use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
 use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
 use exact::ExactSum;
+use film_layers::SampleSplit;
 use film_spectral::SampleLanes;
 use sunlight::CameraDensities;
 
@@ -421,19 +423,22 @@ impl Renderer {
         y: u32,
         sample: u64,
     ) -> Option<[f64; 3]> {
-        self.sample_pixel_lanes(integrator, x, y, sample)
-            .map(|(xyz, _)| xyz)
+        self.sample_pixel_lanes(integrator, x, y, sample, false)
+            .map(|(xyz, ..)| xyz)
     }
 
     /// [`Self::sample_pixel`] with the sample's wavelength lanes, for the
-    /// spectral layer ([`film_spectral`]).
+    /// spectral layer ([`film_spectral`]), and what it gives the `sky`,
+    /// `sun` and `ground` layers ([`film_layers`]; whether its ray meets
+    /// the ground only where `layers`).
     fn sample_pixel_lanes(
         &self,
         integrator: &Integrator<'_>,
         x: u32,
         y: u32,
         sample: u64,
-    ) -> Option<([f64; 3], SampleLanes)> {
+        layers: bool,
+    ) -> Option<([f64; 3], SampleLanes, SampleSplit)> {
         let width = self.scene.render.width;
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);
         let seed = self.scene.render.seed;
@@ -465,7 +470,7 @@ impl Renderer {
                 v
             };
         let Some(dir) = self.camera.direction(px, py) else {
-            return Some(([0.0; 3], SampleLanes::default()));
+            return Some(([0.0; 3], SampleLanes::default(), SampleSplit::default()));
         };
         // Across the passes of one pixel, u₀ follows the golden-ratio additive
         // recurrence from a random per-pixel start (a Cranley–Patterson rotated
@@ -476,9 +481,18 @@ impl Renderer {
         let step = sample * slot.stride + slot.offset;
         let u0 = (start + step as f64 * GOLDEN_RATIO_CONJUGATE).fract();
         let (lanes, pdfs) = self.sample_lanes(u0);
-        let radiance = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
+        let light = integrator.light(self.observer_m, dir, &lanes, &mut rng);
+        let radiance = light.total;
         let n = lanes.active;
         let mut xyz = [0.0; 3];
+        let mut split = SampleSplit {
+            ground: layers
+                && self
+                    .medium
+                    .span(self.observer_m, dir)
+                    .is_some_and(|s| s.hits_ground),
+            ..SampleSplit::default()
+        };
         let mut spectral = SampleLanes {
             active: n,
             ..SampleLanes::default()
@@ -486,8 +500,10 @@ impl Renderer {
         for j in 0..n {
             let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
             let w = K_M * radiance[j] / (pdfs[j] * n as f64);
+            let w_disc = K_M * light.disc[j] / (pdfs[j] * n as f64);
             for c in 0..3 {
                 xyz[c] += w * bar[c];
+                split.sun_xyz[c] += w_disc * bar[c];
             }
             spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j];
             spectral.values[j] = radiance[j] / (pdfs[j] * n as f64);
@@ -495,7 +511,7 @@ impl Renderer {
         let signed = integrator.signed_estimates();
         xyz.iter()
             .all(|v| v.is_finite() && (signed || *v >= 0.0))
-            .then_some((xyz, spectral))
+            .then_some((xyz, spectral, split))
     }
 
     /// Add pass number `pass` to `film`: one sample per pixel, or, once the
@@ -567,6 +583,13 @@ impl Renderer {
                 .map(|_| std::sync::Mutex::new(&mut [][..]))
                 .collect(),
         };
+        // The sky/sun/ground layers' rows, likewise (`None` without them).
+        let with_layers = film.layers.is_some();
+        let layer_rows: Vec<std::sync::Mutex<Option<film_layers::LayerRow<'_>>>> =
+            match &mut film.layers {
+                Some(l) => l.rows(width).into_iter().map(|r| Some(r).into()).collect(),
+                None => film.row_passes.iter().map(|_| None.into()).collect(),
+            };
         film.xyz_sum
             .par_chunks_mut(width)
             .zip(film.row_passes.par_iter_mut())
@@ -592,6 +615,12 @@ impl Renderer {
                         spectral.fill(0.0);
                     }
                     Film::drop_draft(row, *passes, row_weight);
+                }
+                let mut layer_row = layer_rows[y]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                if let Some(layer_row) = layer_row.as_mut().filter(|_| splats && *passes == 1) {
+                    layer_row.clear();
                 }
                 let mut row_paths = 0;
                 // Outside a part's tile, the row's pass counts as done with
@@ -621,10 +650,20 @@ impl Renderer {
                         _ => &integrator,
                     };
                     for sample in first..first + count {
-                        match self.sample_pixel_lanes(integrator, x as u32, y as u32, sample) {
-                            Some((xyz, lanes)) => {
+                        let sampled = self.sample_pixel_lanes(
+                            integrator,
+                            x as u32,
+                            y as u32,
+                            sample,
+                            with_layers,
+                        );
+                        match sampled {
+                            Some((xyz, lanes, split)) => {
                                 for c in 0..3 {
                                     sum[c] += ExactSum::from_f64(weight * xyz[c]);
+                                }
+                                if let Some(layer_row) = layer_row.as_mut() {
+                                    layer_row.add(x, weight, xyz, &split);
                                 }
                                 if bands > 0 {
                                     lanes.add_to(&mut spectral[x * bands..(x + 1) * bands], weight);

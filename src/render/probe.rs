@@ -20,6 +20,19 @@ pub struct SpectralEstimate {
     pub discarded: u64,
 }
 
+/// Which light a probe estimates, as the image's layers split it
+/// ([`super::film_layers`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ProbeLight {
+    /// All the light (the beauty image).
+    All,
+    /// The sun's disc seen straight along the ray (the `sun` layer).
+    SunDisc,
+    /// All but the disc (the `sky` layer, or the `ground` layer where the
+    /// ray meets the ground).
+    WithoutSunDisc,
+}
+
 impl Renderer {
     /// Spectral radiance reaching the observer from (`view_zenith_deg`,
     /// `view_azimuth_deg`) at each wavelength, W m⁻² sr⁻¹ nm⁻¹ (or per unit
@@ -30,6 +43,25 @@ impl Renderer {
         view_azimuth_deg: f64,
         wavelengths_nm: &[f64],
         samples: u32,
+    ) -> Vec<SpectralEstimate> {
+        self.probe_light(
+            view_zenith_deg,
+            view_azimuth_deg,
+            wavelengths_nm,
+            samples,
+            ProbeLight::All,
+        )
+    }
+
+    /// [`Self::probe_radiance`] of the part `light` of the light, from the
+    /// same paths as the whole.
+    pub fn probe_light(
+        &self,
+        view_zenith_deg: f64,
+        view_azimuth_deg: f64,
+        wavelengths_nm: &[f64],
+        samples: u32,
+        light: ProbeLight,
     ) -> Vec<SpectralEstimate> {
         let dir = direction_from_az_el(view_azimuth_deg, 90.0 - view_zenith_deg);
         // Any pass but the first: the scene's own options.
@@ -53,7 +85,14 @@ impl Renderer {
                 for s in 0..samples {
                     let mut rng =
                         Rng::for_sample(self.scene.render.seed, u64::from(s), chunk_index as u64);
-                    let l = integrator.radiance(self.observer_m, dir, &lanes, &mut rng);
+                    let path = integrator.light(self.observer_m, dir, &lanes, &mut rng);
+                    let l: [f64; LANES] = match light {
+                        ProbeLight::All => path.total,
+                        ProbeLight::SunDisc => path.disc,
+                        ProbeLight::WithoutSunDisc => {
+                            std::array::from_fn(|j| path.total[j] - path.disc[j])
+                        }
+                    };
                     for j in 0..LANES {
                         let v = if l[j].is_finite() && (signed || l[j] >= 0.0) {
                             l[j]
