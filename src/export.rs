@@ -114,6 +114,16 @@ pub fn render_to_file(
         )
         .into());
     }
+    if renderer.variance_layer() && scene.render.spp < 3 {
+        return Err(SceneError::new(
+            "layers",
+            format!(
+                "variance is estimated from the spread of the passes after the first: it needs spp of 3 or more, not {}",
+                scene.render.spp
+            ),
+        )
+        .into());
+    }
     let total = scene.render.spp;
     let (film, paths) =
         service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
@@ -219,6 +229,12 @@ fn write_layered_exr(
             }
         }
     }
+    if layers.iter().any(|l| l == "variance") {
+        let plane = film
+            .variance_plane()
+            .ok_or_else(|| SceneError::new("layers", "variance needs at least 3 passes (spp)"))?;
+        channels.push(("variance.Y".to_owned(), plane));
+    }
     channels.extend(renderer.layer_channels(&layers));
     metadata.push(("skyrender:layers".into(), layers.join(",")));
     output::channels::write_exr_image_channels(
@@ -259,10 +275,10 @@ pub fn render_part_to_file(
         .into());
     }
     let renderer = Renderer::new(scene)?;
-    if renderer.path_layers() {
+    if renderer.path_layers() || renderer.variance_layer() {
         return Err(SceneError::new(
             "output",
-            "the sky, sun and ground layers come from a whole render: a part of a split render holds none (render it whole)",
+            "the sky, sun, ground and variance layers come from a whole render: a part of a split render holds none (render it whole)",
         )
         .into());
     }

@@ -274,11 +274,12 @@ impl OutputParams {
     }
 }
 
-/// The layers a render can write beside its RGB image: `sky`, `sun` and
-/// `ground` from the render's own paths (`crate::render::film_layers`),
+/// The layers a render can write beside its RGB image: `sky`, `sun`,
+/// `ground` and `variance` from the render's own paths
+/// (`crate::render::film_layers`),
 /// `transmittance` and `Z` from each pixel's view ray
 /// (`crate::render::layers`).
-pub const OUTPUT_LAYERS: &[&str] = &["sky", "sun", "ground", "transmittance", "Z"];
+pub const OUTPUT_LAYERS: &[&str] = &["sky", "sun", "ground", "variance", "transmittance", "Z"];
 
 /// An invalid parameter.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]

@@ -157,6 +157,8 @@ pub struct Film {
     /// The sums of the `sky`, `sun` and `ground` layers, where they are
     /// asked for ([`super::film_layers`]).
     pub(crate) layers: Option<super::film_layers::LayerSums>,
+    /// The sums of the `variance` layer, where it is asked for.
+    pub(crate) variance: Option<super::film_layers::VarianceSums>,
 }
 
 /// `n` copies of `value`, or an error where the memory is not there (not
@@ -198,6 +200,7 @@ impl Film {
             pixel_weights: Vec::new(),
             spectral: None,
             layers: None,
+            variance: None,
         })
     }
 
@@ -233,6 +236,11 @@ impl Film {
             let sum = &mut self.splat_sum[s.pixel as usize];
             for (v, x) in sum.iter_mut().zip(s.xyz) {
                 *v += x as f32;
+            }
+        }
+        if let Some(variance) = &mut self.variance {
+            for s in splats {
+                variance.add_splat(s.pixel as usize, s.xyz[1]);
             }
         }
         self.splat_paths += paths;

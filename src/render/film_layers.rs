@@ -164,3 +164,143 @@ impl Film {
         Ok(Some(images))
     }
 }
+
+/// The sums behind the `variance` layer: the spread of each pixel's
+/// per-pass estimates (batch means).
+///
+/// Each full pass p ≥ 1 gives pixel i an estimate eₚ of its luminance of
+/// weight Wₚ (its camera samples' weight in the pass, with its mirror
+/// partner's; plus the pass's splats into the pair over the pass's splat
+/// paths). Modelling Var(eₚ) = σ²/Wₚ, σ̂² = Σ Wₚ (eₚ − ē)² / (P − 1) is
+/// unbiased for σ² and Var(ē) ≈ σ̂² / Σ Wₚ: the variance of the pixel's
+/// mean luminance, (cd m⁻²)². The draft pass (another estimator) is left
+/// out. The renderer's low-discrepancy sequences make successive passes'
+/// errors anti-correlated, which this treats as independent: the estimate
+/// errs high, never low, on average (measured in `tests/layers.rs`).
+#[derive(Clone, Debug)]
+pub(crate) struct VarianceSums {
+    /// This pass's weighted camera luminance sums and weights.
+    pass_y: Vec<f64>,
+    pass_w: Vec<f64>,
+    /// This pass's splats' luminance sums (empty without splats).
+    pass_splat_y: Vec<f32>,
+    /// Σ Wₚ, Σ Wₚ eₚ and Σ Wₚ eₚ² per pixel.
+    sum_w: Vec<f64>,
+    sum_we: Vec<f64>,
+    sum_wee: Vec<f64>,
+    /// Passes counted.
+    batches: u32,
+}
+
+/// One row's share of a pass's luminance sums, for the thread that
+/// renders the row.
+pub(crate) struct VarianceRow<'a> {
+    y: &'a mut [f64],
+    w: &'a mut [f64],
+}
+
+impl VarianceRow<'_> {
+    /// Adds a camera sample of luminance `y` (cd m⁻²) and weight `weight`
+    /// at column `x`.
+    pub(crate) fn add(&mut self, x: usize, weight: f64, y: f64) {
+        self.y[x] += weight * y;
+        self.w[x] += weight;
+    }
+}
+
+impl VarianceSums {
+    /// Per row, the row's pass sums.
+    pub(crate) fn rows(&mut self, width: usize) -> Vec<VarianceRow<'_>> {
+        self.pass_y
+            .chunks_mut(width)
+            .zip(self.pass_w.chunks_mut(width))
+            .map(|(y, w)| VarianceRow { y, w })
+            .collect()
+    }
+
+    /// Adds a splat of luminance `y` at `pixel` to this pass's.
+    pub(crate) fn add_splat(&mut self, pixel: usize, y: f64) {
+        if let Some(s) = self.pass_splat_y.get_mut(pixel) {
+            *s += y as f32;
+        }
+    }
+}
+
+impl Film {
+    /// The film with the sums of the `variance` layer.
+    pub(crate) fn try_with_variance(mut self) -> Result<Self, std::collections::TryReserveError> {
+        let n = self.xyz_sum.len();
+        self.variance = Some(VarianceSums {
+            pass_y: try_filled(n, 0.0)?,
+            pass_w: try_filled(n, 0.0)?,
+            pass_splat_y: if self.splats() {
+                try_filled(n, 0.0)?
+            } else {
+                Vec::new()
+            },
+            sum_w: try_filled(n, 0.0)?,
+            sum_we: try_filled(n, 0.0)?,
+            sum_wee: try_filled(n, 0.0)?,
+            batches: 0,
+        });
+        Ok(self)
+    }
+
+    /// Empties the pass sums before pass `pass`.
+    pub(crate) fn start_variance_pass(&mut self) {
+        if let Some(v) = &mut self.variance {
+            v.pass_y.fill(0.0);
+            v.pass_w.fill(0.0);
+            v.pass_splat_y.fill(0.0);
+        }
+    }
+
+    /// Counts the pass just rendered by every row (`pass`, with
+    /// `splat_paths` splat paths) as one batch; the draft pass is not one.
+    pub(crate) fn end_variance_pass(&mut self, pass: u32, splat_paths: u64) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mirror = self.mirror;
+        let Some(v) = self.variance.as_mut().filter(|_| pass >= 1) else {
+            return;
+        };
+        for i in 0..w * h {
+            let partner = mirror
+                .map(|m| m.partner(i % w, i / w, w, h))
+                .filter(|&p| p != i);
+            let pair = || std::iter::once(i).chain(partner);
+            let weight: f64 = pair().map(|p| v.pass_w[p]).sum();
+            if weight <= 0.0 {
+                continue;
+            }
+            let mut e = pair().map(|p| v.pass_y[p]).sum::<f64>() / weight;
+            if splat_paths > 0 && !v.pass_splat_y.is_empty() {
+                let n = pair().count() as f64;
+                let splats: f64 = pair().map(|p| f64::from(v.pass_splat_y[p])).sum();
+                e += splats / (n * splat_paths as f64);
+            }
+            v.sum_w[i] += weight;
+            v.sum_we[i] += weight * e;
+            v.sum_wee[i] += weight * e * e;
+        }
+        v.batches += 1;
+    }
+
+    /// The `variance.Y` plane: per pixel the estimated variance of its mean
+    /// luminance, (cd m⁻²)²; `None` without variance sums or before two
+    /// full passes.
+    pub fn variance_plane(&self) -> Option<Vec<f32>> {
+        let v = self.variance.as_ref().filter(|v| v.batches >= 2)?;
+        let p = f64::from(v.batches);
+        Some(
+            (0..self.xyz_sum.len())
+                .map(|i| {
+                    let (w, we, wee) = (v.sum_w[i], v.sum_we[i], v.sum_wee[i]);
+                    if w <= 0.0 {
+                        return 0.0;
+                    }
+                    ((wee - we * we / w).max(0.0) / ((p - 1.0) * w)) as f32
+                })
+                .collect(),
+        )
+    }
+}

@@ -48,6 +48,7 @@ pub fn channel_names(layer: &str) -> &'static [&'static str] {
         "sky" => &["sky.R", "sky.G", "sky.B"],
         "sun" => &["sun.R", "sun.G", "sun.B"],
         "ground" => &["ground.R", "ground.G", "ground.B"],
+        "variance" => &["variance.Y"],
         "transmittance" => &["transmittance.R", "transmittance.G", "transmittance.B", "A"],
         "Z" => &["Z"],
         _ => &[],
@@ -74,7 +75,10 @@ impl Renderer {
         // The path layers' sums: the ground's exact XYZ (48 bytes) and
         // whether each pixel's centre sees the ground (the sun's few sums
         // are left out).
-        let sums = if self.path_layers() { 48 + 1 } else { 0 };
+        let sums = if self.path_layers() { 48 + 1 } else { 0 }
+            // The variance's pass and running sums (f64) and the pass's
+            // splats (f32).
+            + if self.variance_layer() { 5 * 8 + 4 } else { 0 };
         4 * (3 + channels as u64) + sums
     }
 
@@ -86,6 +90,11 @@ impl Renderer {
             .layers
             .iter()
             .any(|l| super::film_layers::PATH_LAYERS.contains(&l.as_str()))
+    }
+
+    /// Whether the output has the `variance` layer.
+    pub fn variance_layer(&self) -> bool {
+        self.scene.output.layers.iter().any(|l| l == "variance")
     }
 
     /// Per pixel (row-major), whether the view ray through its centre

@@ -35,6 +35,11 @@ impl Renderer {
         } else {
             film
         };
+        let film = if self.variance_layer() {
+            film.try_with_variance().map_err(|_| self.out_of_memory())?
+        } else {
+            film
+        };
         let film = if self.path_layers() {
             film.try_with_layers(self.centre_ground())
                 .map_err(|_| self.out_of_memory())?

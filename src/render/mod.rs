@@ -540,6 +540,11 @@ impl Renderer {
         {
             film.plan_samples();
         }
+        // The variance layer's batch is this pass, where every row starts it.
+        let variance_batch = film.variance.is_some() && film.row_passes.iter().all(|&p| p == pass);
+        if variance_batch {
+            film.start_variance_pass();
+        }
         let integrator = self.integrator(pass);
         // Pixels the splats leave out (Camera::pixel_density_bounded) keep
         // the camera's branches from the air.
@@ -590,6 +595,11 @@ impl Renderer {
                 Some(l) => l.rows(width).into_iter().map(|r| Some(r).into()).collect(),
                 None => film.row_passes.iter().map(|_| None.into()).collect(),
             };
+        let variance_rows: Vec<std::sync::Mutex<Option<film_layers::VarianceRow<'_>>>> =
+            match &mut film.variance {
+                Some(v) => v.rows(width).into_iter().map(|r| Some(r).into()).collect(),
+                None => film.row_passes.iter().map(|_| None.into()).collect(),
+            };
         film.xyz_sum
             .par_chunks_mut(width)
             .zip(film.row_passes.par_iter_mut())
@@ -622,6 +632,9 @@ impl Renderer {
                 if let Some(layer_row) = layer_row.as_mut().filter(|_| splats && *passes == 1) {
                     layer_row.clear();
                 }
+                let mut variance_row = variance_rows[y]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
                 let mut row_paths = 0;
                 // Outside a part's tile, the row's pass counts as done with
                 // no samples: the merge takes those pixels from other parts.
@@ -665,6 +678,9 @@ impl Renderer {
                                 if let Some(layer_row) = layer_row.as_mut() {
                                     layer_row.add(x, weight, xyz, &split);
                                 }
+                                if let Some(variance_row) = variance_row.as_mut() {
+                                    variance_row.add(x, weight, xyz[1]);
+                                }
                                 if bands > 0 {
                                     lanes.add_to(&mut spectral[x * bands..(x + 1) * bands], weight);
                                 }
@@ -686,8 +702,12 @@ impl Renderer {
         let discarded = discarded.into_inner();
         film.discarded += discarded;
         film.splat_discarded += splat_discarded;
+        let completed = film.row_passes.iter().all(|&p| p > pass);
+        if variance_batch && completed {
+            film.end_variance_pass(pass, splat_paths);
+        }
         PassStats {
-            completed: film.row_passes.iter().all(|&p| p > pass),
+            completed,
             paths: paths.into_inner(),
             splat_paths,
             discarded,
