@@ -152,6 +152,8 @@ pub struct ExportSettings {
     pub spp: u32,
     /// A sequence of panoramas over time instead of one.
     pub timelapse: TimelapseSettings,
+    /// Write every compositing layer beside the image (`render --layers`).
+    pub layers: bool,
 }
 
 impl Default for ExportSettings {
@@ -160,6 +162,7 @@ impl Default for ExportSettings {
             width: 4096,
             spp: 64,
             timelapse: TimelapseSettings::default(),
+            layers: false,
         }
     }
 }
@@ -654,6 +657,16 @@ impl AppState {
         scene.render.width = width;
         scene.render.height = width / 2;
         scene.render.spp = self.export.spp.clamp(1, MAX_EXPORT_SPP);
+        // Every layer; the variance needs three passes.
+        scene.output.layers = if self.export.layers {
+            crate::scene::OUTPUT_LAYERS
+                .iter()
+                .filter(|&&l| l != "variance" || scene.render.spp >= 3)
+                .map(|&l| l.to_owned())
+                .collect()
+        } else {
+            Vec::new()
+        };
         scene
     }
 
@@ -719,6 +732,18 @@ impl AppState {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_export_writes_every_layer_when_asked() {
+        let mut state = AppState::default();
+        assert!(state.export_scene().output.layers.is_empty());
+        state.export.layers = true;
+        let layers = state.export_scene().output.layers;
+        assert_eq!(layers.len(), crate::scene::OUTPUT_LAYERS.len());
+        state.set_export_spp(2);
+        let layers = state.export_scene().output.layers;
+        assert!(layers.contains(&"sky".to_owned()) && !layers.contains(&"variance".to_owned()));
+    }
 
     #[test]
     fn setters_mark_dirty_only_on_change() {

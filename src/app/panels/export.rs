@@ -60,6 +60,12 @@ impl ExportPanel<'_> {
         {
             self.state.set_export_spp(spp);
         }
+        ui.checkbox(&mut self.state.export.layers, "Layers")
+            .on_hover_text(
+                "Write the compositing layers beside the image: sky, sun and ground \
+                 (the image split by light path), variance, transmittance and alpha, Z \
+                 (as `skyrender render --layers`)",
+            );
         if self.state.sun_mode() == SunMode::DatePlace {
             self.timelapse_settings(ui);
         }
