@@ -60,41 +60,11 @@ impl ExportPanel<'_> {
         {
             self.state.set_export_spp(spp);
         }
-        ui.checkbox(&mut self.state.export.layers, "Layers")
-            .on_hover_text(
-                "Write the compositing layers beside the image: sky, sun and ground \
-                 (the image split by light path), variance, transmittance and alpha, Z \
-                 (as `skyrender render --layers`)",
-            );
         if self.state.sun_mode() == SunMode::DatePlace {
             self.timelapse_settings(ui);
         }
         let can_export = !self.exporting && self.dialogs_enabled;
-        if self.state.timelapse_enabled() {
-            let plan = self.state.timelapse();
-            if ui
-                .add_enabled(
-                    can_export && plan.is_ok(),
-                    egui::Button::new("Export timelapse…"),
-                )
-                .on_hover_text(
-                    "Render the frames one after another in the background into a \
-                     folder you choose, named by the file name above",
-                )
-                .clicked()
-            {
-                request = Some(Request::Open(Dialog::TimelapseFolder));
-            }
-        } else if ui
-            .add_enabled(can_export, egui::Button::new("Export HDR panorama…"))
-            .on_hover_text(
-                "Render the scene as an equirectangular OpenEXR in the background: \
-                 the same file as `skyrender render --camera equirect` writes",
-            )
-            .clicked()
-        {
-            request = Some(Request::Open(Dialog::Export));
-        }
+        ui.horizontal(|ui| self.export_buttons(ui, can_export, &mut request));
         match self.state.export_status.clone() {
             ExportStatus::Running {
                 done,
@@ -166,6 +136,47 @@ impl ExportPanel<'_> {
             request = Some(Request::Open(Dialog::SaveView));
         }
         request
+    }
+
+    /// The export button (a panorama, or the timelapse's frames) and the
+    /// Layers option beside it.
+    fn export_buttons(
+        &mut self,
+        ui: &mut egui::Ui,
+        can_export: bool,
+        request: &mut Option<Request>,
+    ) {
+        if self.state.timelapse_enabled() {
+            let plan = self.state.timelapse();
+            if ui
+                .add_enabled(
+                    can_export && plan.is_ok(),
+                    egui::Button::new("Export timelapse…"),
+                )
+                .on_hover_text(
+                    "Render the frames one after another in the background into a \
+                     folder you choose, named by the file name above",
+                )
+                .clicked()
+            {
+                *request = Some(Request::Open(Dialog::TimelapseFolder));
+            }
+        } else if ui
+            .add_enabled(can_export, egui::Button::new("Export HDR panorama…"))
+            .on_hover_text(
+                "Render the scene as an equirectangular OpenEXR in the background: \
+                 the same file as `skyrender render --camera equirect` writes",
+            )
+            .clicked()
+        {
+            *request = Some(Request::Open(Dialog::Export));
+        }
+        ui.checkbox(&mut self.state.export.layers, "Layers")
+            .on_hover_text(
+                "Write the compositing layers beside the image: sky, sun and ground \
+                 (the image split by light path), variance, transmittance and alpha, Z \
+                 (as `skyrender render --layers`)",
+            );
     }
 
     /// The Timelapse checkbox and, when ticked, its duration, frames, file
