@@ -566,3 +566,92 @@ fn the_variance_layer_matches_the_spread_between_seeds() {
         );
     }
 }
+
+/// OpenImageIO (`oiiotool`), a reader independent of ours and of the
+/// `exr` crate, opens a layered and a spectral file, lists their channels
+/// and finds each channel's mean where ours does. Skipped where
+/// `oiiotool` is missing, unless `SKYRENDER_REQUIRE_OIIO` is set (CI).
+#[test]
+fn openimageio_reads_the_layered_and_spectral_files() {
+    if Command::new("oiiotool").arg("--version").output().is_err() {
+        assert!(
+            std::env::var_os("SKYRENDER_REQUIRE_OIIO").is_none(),
+            "oiiotool is required here (SKYRENDER_REQUIRE_OIIO) but missing"
+        );
+        eprintln!("oiiotool not found: skipped");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let layered = dir.path().join("layered.exr");
+    render_layers(&layered, &["--layers"]);
+    let spectral = dir.path().join("spectral.exr");
+    let out = skyrender(&[
+        "render",
+        "--preset",
+        "midday",
+        "--width",
+        "16",
+        "--height",
+        "8",
+        "--spp",
+        "2",
+        "--spectral",
+        "--bands",
+        "10",
+        "-o",
+        spectral.to_str().unwrap(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    for path in [&layered, &spectral] {
+        let out = Command::new("oiiotool")
+            .args(["--info", "-v", "--stats"])
+            .arg(path)
+            .output()
+            .unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let text = String::from_utf8_lossy(&out.stdout);
+        let line = |key: &str| {
+            text.lines()
+                .find_map(|l| l.trim_start().strip_prefix(key))
+                .unwrap_or_else(|| panic!("no {key} in:\n{text}"))
+                .trim()
+                .to_owned()
+        };
+        let names: Vec<String> = line("channel list:")
+            .split(", ")
+            .map(str::to_owned)
+            .collect();
+        let means: Vec<f64> = line("Stats Avg:")
+            .split_whitespace()
+            .filter_map(|t| t.parse().ok())
+            .collect();
+        let file = read_exr_channels(path).unwrap();
+        let mut ours: Vec<&String> = file.channels.keys().collect();
+        ours.sort();
+        let mut theirs: Vec<&String> = names.iter().collect();
+        theirs.sort();
+        assert_eq!(ours, theirs, "{}", path.display());
+        assert_eq!(means.len(), names.len(), "{text}");
+        for (name, &mean) in names.iter().zip(&means) {
+            let values: Vec<f64> = file.channels[name]
+                .iter()
+                .map(|&v| f64::from(v))
+                .filter(|v| v.is_finite())
+                .collect();
+            let expected = values.iter().sum::<f64>() / values.len() as f64;
+            assert!(
+                (mean - expected).abs() <= 1e-5 * expected.abs() + 2e-6,
+                "{} {name}: oiiotool {mean}, ours {expected}",
+                path.display()
+            );
+        }
+    }
+}
