@@ -470,13 +470,29 @@ pub fn merge_parts(paths: &[PathBuf], output: &Path) -> Result<Scene, String> {
         .try_to_rgb()
         .map_err(|_| format!("not enough memory to merge a {width}×{height} image"))?;
     let total_paths = parts.iter().map(|p| p.paths).sum();
-    output::write_image(
-        output,
-        &image,
-        &image_metadata(&scene, &image, spp, total_paths, film.discarded),
-        scene.render.exposure_ev.map(|v| v as f32),
-    )
-    .map_err(|e| e.to_string())?;
+    let metadata = image_metadata(&scene, &image, spp, total_paths, film.discarded);
+    if scene.output.layers.is_empty() {
+        output::write_image(
+            output,
+            &image,
+            &metadata,
+            scene.render.exposure_ev.map(|v| v as f32),
+        )
+        .map_err(|e| e.to_string())?;
+    } else {
+        // The layers of the view rays (parts hold no path layers).
+        let format = output::OutputFormat::from_path(output).map_err(|e| e.to_string())?;
+        if !matches!(format, output::OutputFormat::Exr) {
+            return Err(format!(
+                "'{}': the scene's layers ({}) need an EXR file, not a PNG",
+                output.display(),
+                scene.output.layers.join(", ")
+            ));
+        }
+        let renderer = Renderer::new(&scene).map_err(|e| e.to_string())?;
+        write_layered_exr(&scene, &renderer, &film, output, &image, metadata)
+            .map_err(|e| e.to_string())?;
+    }
     Ok(scene)
 }
 

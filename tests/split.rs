@@ -315,3 +315,62 @@ fn parts_that_do_not_fit_are_refused() {
     assert_eq!(result.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&result.stderr).contains("EXR"));
 }
+
+/// The view rays' layers (transmittance, Z) of a split render come out of
+/// the merge as out of a single render, byte for byte; the layers of the
+/// paths (sky, sun, ground, variance) need the whole render, and a part
+/// that asks for them is refused with nothing written.
+#[test]
+fn merges_write_the_view_ray_layers_and_parts_refuse_the_path_layers() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = [
+        "--preset",
+        "midday",
+        "--camera",
+        "equirect",
+        "--width",
+        "32",
+        "--height",
+        "16",
+        "--spp",
+        "3",
+        "--no-adaptive",
+        "--layers",
+        "transmittance,Z",
+    ];
+    let single = render(dir.path(), "single.exr", &scene, &[]);
+    let parts: Vec<PathBuf> = (0..2)
+        .map(|i| {
+            let index = i.to_string();
+            let extra = ["--tiles", "2", "--tile-index", index.as_str()];
+            render(dir.path(), &format!("part{i}.exr"), &scene, &extra)
+        })
+        .collect();
+    let merged = merge(dir.path(), &parts, "merged.exr");
+    assert!(
+        std::fs::read(&single).unwrap() == std::fs::read(&merged).unwrap(),
+        "the merged layered file differs from the single render's"
+    );
+    let refused = dir.path().join("sky_part.exr");
+    let out = skyrender(&[
+        "render",
+        "--preset",
+        "midday",
+        "--width",
+        "16",
+        "--height",
+        "8",
+        "--spp",
+        "3",
+        "--passes",
+        "0..1",
+        "--layers",
+        "sky",
+        "-o",
+        refused.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(2), "{err}");
+    assert!(err.contains("come from a whole render"), "{err}");
+    assert!(!refused.exists());
+}

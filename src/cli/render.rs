@@ -318,13 +318,9 @@ pub fn run(
         .into());
     }
     if let Some(part) = split.part(&base)? {
-        if !base.output.layers.is_empty() {
-            return Err(SceneError::new(
-                "layers",
-                "a part of a split render holds no layers (render the whole image)",
-            )
-            .into());
-        }
+        // The view rays' layers are written by the merge; the paths' need
+        // the whole render (`export::render_part_to_file` says so).
+
         return run_part(args, &base, part, output, sequence.resume);
     }
     let mut jobs = jobs(&base, output, sequence)?;
