@@ -427,7 +427,15 @@ impl Scene {
         Self::from_toml(text)
     }
 
+    /// A scene from its TOML text; a relative `phase_file` is taken from
+    /// the working directory.
     pub fn from_toml(text: &str) -> Result<Self, SceneError> {
+        Self::from_toml_in(text, None)
+    }
+
+    /// [`Self::from_toml`] for a file in folder `base`, from which a
+    /// relative `phase_file` is then taken.
+    pub fn from_toml_in(text: &str, base: Option<&Path>) -> Result<Self, SceneError> {
         let table: toml::Table = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         // A fisheye's field of view defaults to 180° (the whole sky), a
         // perspective camera's to 90°: the shared field's default is the
@@ -442,6 +450,11 @@ impl Scene {
         let mut scene: Self = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         if fisheye_without_fov {
             scene.camera.fov_deg = CameraKind::Fisheye.default_fov_deg();
+        }
+        if let (Some(base), Some(file)) = (base, &mut scene.atmosphere.aerosol.phase_file) {
+            if file.is_relative() {
+                *file = base.join(&*file);
+            }
         }
         scene.place_sun()?;
         scene.validate()?;
@@ -531,7 +544,7 @@ impl Scene {
                 e.utf8_error().valid_up_to()
             ))
         })?;
-        Self::from_toml(&text).map_err(|e| SceneError {
+        Self::from_toml_in(&text, path.parent()).map_err(|e| SceneError {
             parameter: e.parameter,
             message: format!("{} (in '{}')", e.message, path.display()),
         })
@@ -579,9 +592,7 @@ impl Scene {
         if let Some(du) = a.ozone_du {
             check_range("ozone column (DU)", du, 0.0, 2_000.0)?;
         }
-        check_range("aerosol amount", a.aerosol_amount, 0.0, 100.0)?;
-        check_range("aerosol g", a.aerosol_g, -0.99, 0.99)?;
-        check_range("aerosol albedo", a.aerosol_albedo, 0.0, 1.0)?;
+        a.validate_aerosol()?;
         let r = &self.render;
         if r.width == 0 || r.width > 65_536 {
             return Err(SceneError::new(

@@ -1,5 +1,6 @@
 //! Aerosols: Elterman's (1968) vertical extinction profile, its wavelength
-//! dependence, and the Henyey–Greenstein and Cornette–Shanks phase functions.
+//! dependence, and the phase functions: Henyey–Greenstein, Cornette–Shanks,
+//! double Henyey–Greenstein, or a table ([`PhaseFunction`]).
 //!
 //! Elterman, L. (1968), *UV, Visible, and IR Attenuation for Altitudes to
 //! 50 km*, AFCRL-68-0153. Its aerosol-only column is available to us at
@@ -13,9 +14,10 @@
 //! (piecewise Ångström law), and extrapolated with the end exponents.
 
 use std::f64::consts::PI;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use crate::data::{self, Table};
+use crate::physics::phase_table::PhaseTable;
 use crate::physics::{ozone, rayleigh, standard_atmosphere};
 
 /// Elterman's sea-level-to-50 km aerosol extinction at 340 nm, per level.
@@ -226,6 +228,82 @@ impl PhaseModel {
                 }
             },
         }
+    }
+}
+
+/// The double Henyey–Greenstein phase function per steradian: `weight` ×
+/// HG(`g1`) + (1 − `weight`) × HG(`g2`), usually a forward lobe (g1 > 0)
+/// and a backward one (g2 < 0). Kattawar, G. W. (1975), *A three-parameter
+/// analytic phase function for multiple scattering calculations*, JQSRT 15,
+/// 839–849 (his α, g₁, g₂).
+pub fn double_henyey_greenstein(mu: f64, g1: f64, g2: f64, weight: f64) -> f64 {
+    weight * henyey_greenstein(mu, g1) + (1.0 - weight) * henyey_greenstein(mu, g2)
+}
+
+/// The aerosol's phase function with its parameters, as the renderer
+/// evaluates, samples and expands it. Every variant's sampling density is
+/// exactly its [`Self::eval`], and its [`Self::legendre_moments`] are exact,
+/// so the estimators that divide by the one or integrate with the other
+/// stay unbiased.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PhaseFunction {
+    /// Henyey & Greenstein (1941) with asymmetry `g`.
+    HenyeyGreenstein { g: f64 },
+    /// Cornette & Shanks (1992) with parameter `g`.
+    CornetteShanks { g: f64 },
+    /// [`double_henyey_greenstein`].
+    DoubleHenyeyGreenstein { g1: f64, g2: f64, weight: f64 },
+    /// Tabulated against the scattering angle ([`PhaseTable`]).
+    Table(Arc<PhaseTable>),
+}
+
+impl PhaseFunction {
+    /// Phase function per steradian; `mu` is the cosine between the
+    /// incident and scattered propagation directions.
+    pub fn eval(&self, mu: f64) -> f64 {
+        match self {
+            Self::HenyeyGreenstein { g } => henyey_greenstein(mu, *g),
+            Self::CornetteShanks { g } => cornette_shanks(mu, *g),
+            Self::DoubleHenyeyGreenstein { g1, g2, weight } => {
+                double_henyey_greenstein(mu, *g1, *g2, *weight)
+            }
+            Self::Table(table) => table.eval(mu),
+        }
+    }
+
+    /// A cosine drawn with density [`Self::eval`] (× 2π per unit μ): the
+    /// double Henyey–Greenstein by choosing its lobe with probability
+    /// `weight` (one uniform number), then sampling that lobe.
+    pub fn sample(&self, mut uniform: impl FnMut() -> f64) -> f64 {
+        match self {
+            Self::HenyeyGreenstein { g } => PhaseModel::HenyeyGreenstein.sample(*g, uniform),
+            Self::CornetteShanks { g } => PhaseModel::CornetteShanks.sample(*g, uniform),
+            Self::DoubleHenyeyGreenstein { g1, g2, weight } => {
+                let g = if uniform() < *weight { *g1 } else { *g2 };
+                sample_henyey_greenstein(uniform(), g)
+            }
+            Self::Table(table) => table.sample(uniform()),
+        }
+    }
+
+    /// Legendre moments k_l = 2π ∫ p(μ) P_l(μ) dμ, l = 0..N (see
+    /// [`PhaseModel::legendre_moments`]); the double Henyey–Greenstein's
+    /// are weight·g1^l + (1 − weight)·g2^l.
+    pub fn legendre_moments<const N: usize>(&self) -> [f64; N] {
+        match self {
+            Self::HenyeyGreenstein { g } => PhaseModel::HenyeyGreenstein.legendre_moments(*g),
+            Self::CornetteShanks { g } => PhaseModel::CornetteShanks.legendre_moments(*g),
+            Self::DoubleHenyeyGreenstein { g1, g2, weight } => std::array::from_fn(|l| {
+                weight * g1.powi(l as i32) + (1.0 - weight) * g2.powi(l as i32)
+            }),
+            Self::Table(table) => table.legendre_moments(),
+        }
+    }
+
+    /// The mean cosine of the scattering angle (the asymmetry parameter;
+    /// for Cornette–Shanks not its `g`).
+    pub fn mean_cosine(&self) -> f64 {
+        self.legendre_moments::<2>()[1]
     }
 }
 
