@@ -689,6 +689,76 @@ mod tests {
     }
 
     #[test]
+    fn the_aerosol_by_its_optical_depth_gives_that_column() {
+        // τ₅₅₀ and the Ångström law over the column from the ground, by
+        // either profile, against the numerical column of the coefficients.
+        for (profile, scale_height_m) in [
+            (None, None),
+            (Some(AerosolProfileKind::Exponential), Some(1_500.0)),
+        ] {
+            let params = AtmosphereParams {
+                aerosol: AerosolOptics {
+                    optical_depth_550: Some(0.3),
+                    angstrom_exponent: Some(1.1),
+                    profile,
+                    scale_height_m,
+                    ..AerosolOptics::default()
+                },
+                ..AtmosphereParams::default()
+            };
+            params.validate_aerosol().unwrap();
+            let atmosphere = Atmosphere::new(params.clone());
+            for nm in [350.0, 550.0, 870.0] {
+                let want = 0.3 * (nm / 550.0_f64).powf(-1.1);
+                let closed = params.aerosol_optical_depth(nm);
+                let numerical = atmosphere.vertical_optical_depth(0.0, nm).aerosol;
+                assert!((closed / want - 1.0).abs() < 1e-12, "{closed} {want}");
+                assert!((numerical / want - 1.0).abs() < 1e-5, "{numerical} {want}");
+            }
+        }
+        // Only the spectrum changed: Elterman's profile with amount 2 keeps
+        // its column at 550 nm.
+        let elterman = AtmosphereParams {
+            aerosol_amount: 2.0,
+            ..AtmosphereParams::default()
+        };
+        let angstrom = AtmosphereParams {
+            aerosol: AerosolOptics {
+                angstrom_exponent: Some(0.0),
+                ..AerosolOptics::default()
+            },
+            ..elterman.clone()
+        };
+        let (a, b) = (
+            elterman.aerosol_optical_depth(550.0),
+            angstrom.aerosol_optical_depth(550.0),
+        );
+        assert!((a / b - 1.0).abs() < 1e-12, "{a} {b}");
+        assert_eq!(angstrom.aerosol_optical_depth(400.0), b);
+    }
+
+    #[test]
+    fn without_the_new_keys_the_aerosol_is_computed_as_before() {
+        // Bit for bit: amount × Elterman at 340 nm × the spectral factor.
+        let params = AtmosphereParams {
+            aerosol_amount: 3.0,
+            ..AtmosphereParams::default()
+        };
+        let atmosphere = Atmosphere::new(params.clone());
+        for z in [0.0, 750.0, 12_345.0] {
+            let old = 3.0
+                * aerosol::Profile::get().extinction_340nm_per_m(z)
+                * aerosol::SpectralFactor::get().at(500.0);
+            assert_eq!(atmosphere.aerosol_extinction_per_m(z, 500.0), old);
+        }
+        assert_eq!(
+            params.aerosol_phase_function().unwrap(),
+            aerosol::PhaseFunction::HenyeyGreenstein { g: 0.7 }
+        );
+        assert_eq!(params.aerosol_single_scattering_albedo(), 0.9);
+    }
+
+    #[test]
     fn numerical_ozone_depth_matches_the_analytic_column() {
         // With a temperature-independent wavelength (where σ(T) varies little)
         // the optical depth ≈ column × σ; use the exact column at 1 nm steps.
