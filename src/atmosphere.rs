@@ -95,8 +95,8 @@ pub const ANGSTROM_EXPONENT_RANGE: (f64, f64) = (-1.0, 4.0);
 /// haze `aerosol_amount` allows (100 × Elterman's 0.249).
 pub const MAX_AEROSOL_OPTICAL_DEPTH: f64 = 25.0;
 /// Valid range of the exponential profile's scale height, m. Below 500 m
-/// the renderer's 50 m nodes (`render::medium`) would no longer follow the
-/// exponential to 0.1 %; above 100 km it is no longer a profile but a
+/// the renderer's 50 m nodes (`render::medium`), linear in between, would
+/// stray from the exponential by more than (50/500)²/8 = 0.13 %; above 100 km it is no longer a profile but a
 /// constant over the atmosphere's height (typical hazes: 1–2 km).
 pub const SCALE_HEIGHT_RANGE_M: (f64, f64) = (500.0, 100_000.0);
 /// Reference wavelength of `optical_depth_550` and of the Ångström law, nm.
@@ -164,7 +164,10 @@ pub enum AerosolSpectrum {
     /// Elterman's, relative to 550 nm.
     Elterman550,
     /// (λ / 550 nm)^−α.
-    Angstrom { exponent: f64 },
+    Angstrom {
+        /// The Ångström exponent α.
+        exponent: f64,
+    },
 }
 
 impl AerosolSpectrum {

@@ -706,6 +706,19 @@ mod tests {
     }
 
     #[test]
+    fn an_aerosol_table_round_trips_and_is_left_out_when_unset() {
+        let toml = "[atmosphere.aerosol]\noptical_depth_550 = 0.2\nangstrom_exponent = 0.8\n\
+                    single_scattering_albedo = 0.95\nprofile = \"exponential\"\n\
+                    scale_height_m = 2000.0\nphase = \"double-henyey-greenstein\"\n\
+                    g1 = 0.8\ng2 = -0.2\nweight = 0.9\n";
+        let scene = Scene::from_toml(toml).unwrap();
+        let text = scene.to_toml();
+        assert!(text.contains("[atmosphere.aerosol]"), "{text}");
+        assert_eq!(Scene::from_toml(&text).unwrap(), scene);
+        assert!(!Scene::default().to_toml().contains("aerosol]"));
+    }
+
+    #[test]
     fn circle_splatting_needs_the_camera_rays_next_event_points() {
         for toml in [
             "[render.integrator]\ncircle_splatting = true\ncamera_samples = 0",

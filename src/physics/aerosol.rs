@@ -247,12 +247,25 @@ pub fn double_henyey_greenstein(mu: f64, g1: f64, g2: f64, weight: f64) -> f64 {
 /// stay unbiased.
 #[derive(Clone, Debug, PartialEq)]
 pub enum PhaseFunction {
-    /// Henyey & Greenstein (1941) with asymmetry `g`.
-    HenyeyGreenstein { g: f64 },
-    /// Cornette & Shanks (1992) with parameter `g`.
-    CornetteShanks { g: f64 },
+    /// Henyey & Greenstein (1941).
+    HenyeyGreenstein {
+        /// Asymmetry parameter (its mean cosine), −1 to 1.
+        g: f64,
+    },
+    /// Cornette & Shanks (1992).
+    CornetteShanks {
+        /// The parameter g of its Henyey–Greenstein factor.
+        g: f64,
+    },
     /// [`double_henyey_greenstein`].
-    DoubleHenyeyGreenstein { g1: f64, g2: f64, weight: f64 },
+    DoubleHenyeyGreenstein {
+        /// Asymmetry parameter of the first lobe.
+        g1: f64,
+        /// Asymmetry parameter of the second lobe.
+        g2: f64,
+        /// Weight of the first lobe, 0–1.
+        weight: f64,
+    },
     /// Tabulated against the scattering angle ([`PhaseTable`]).
     Table(Arc<PhaseTable>),
 }

@@ -85,8 +85,8 @@ struct ShellBounds {
 /// profiles stray from them.
 #[derive(Clone, Copy, Debug, Default)]
 struct Chord {
-    /// Air (m⁻³), aerosol extinction at the reference wavelength (m⁻¹) and ozone (m⁻³) at the
-    /// shell's lower boundary.
+    /// Air (m⁻³), aerosol extinction at the reference wavelength (m⁻¹) and
+    /// ozone (m⁻³) at the shell's lower boundary.
     lower: [f64; 3],
     /// Their change per m² of r².
     slope: [f64; 3],
@@ -198,8 +198,8 @@ struct ShellExtinction {
 /// `BENCHMARKS.md`).
 #[derive(Clone, Debug)]
 struct ShellTerms {
-    /// Largest air (m⁻³), ozone (m⁻³) and aerosol extinction at the reference wavelength
-    /// (m⁻¹) in the shell.
+    /// Largest air (m⁻³), ozone (m⁻³) and aerosol extinction at the
+    /// reference wavelength (m⁻¹) in the shell.
     air_max: [f64; SHELL_SLOTS],
     ozone_max: [f64; SHELL_SLOTS],
     aerosol_max: [f64; SHELL_SLOTS],
@@ -467,9 +467,10 @@ impl SpectralLanes {
     }
 
     /// The control extinction of residual ratio tracking, m⁻¹, per lane,
-    /// from the chords' densities (air, aerosol at the reference wavelength, ozone): Rayleigh
-    /// and aerosol as in [`Medium::coefficients`], ozone with the middle of
-    /// the lane's cross-section range over temperature.
+    /// from the chords' densities (air, aerosol at the reference
+    /// wavelength, ozone): Rayleigh and aerosol as in
+    /// [`Medium::coefficients`], ozone with the middle of the lane's
+    /// cross-section range over temperature.
     pub(super) fn control(&self, densities: [f64; 3]) -> Lanes {
         std::array::from_fn(|j| {
             self.rayleigh_m2[j] * densities[0]
@@ -479,8 +480,8 @@ impl SpectralLanes {
     }
 
     /// Bound on |extinction − control| over the active lanes where the
-    /// profiles (air, aerosol at the reference wavelength, ozone) lie within `deviations` of
-    /// the densities the control was given, and ozone stays below
+    /// profiles (air, aerosol at the reference wavelength, ozone) lie within
+    /// `deviations` of the densities the control was given, and ozone stays below
     /// `ozone_max_m3` (its cross-section's spread over temperature about the
     /// control's mid value), m⁻¹.
     pub(super) fn residual_bound(&self, deviations: [f64; 3], ozone_max_m3: f64) -> f64 {
@@ -682,7 +683,8 @@ impl Medium {
     }
 
     /// Air and ozone number densities (m⁻³) and the aerosol extinction at
-    /// the reference wavelength (m⁻¹, see [`Node`]) at distance `radius_m` from the planet's centre.
+    /// the reference wavelength (m⁻¹, as the nodes hold it) at distance `radius_m`
+    /// from the planet's centre.
     pub fn densities(&self, radius_m: f64) -> [f64; 3] {
         let x = ((radius_m - self.planet_radius_m) / NODE_STEP_M).max(0.0);
         let i = (x as usize).min(self.nodes.len() - 2);
