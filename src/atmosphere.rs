@@ -117,9 +117,10 @@ pub struct AerosolOptics {
     /// Elterman's spectral dependence.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub angstrom_exponent: Option<f64>,
-    /// Single-scattering albedo, 0–1; replaces `aerosol_albedo`.
+    /// Single-scattering albedo, 0–1: one number, or a spectrum of
+    /// `[wavelength_nm, albedo]` pairs; replaces `aerosol_albedo`.
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub single_scattering_albedo: Option<f64>,
+    pub single_scattering_albedo: Option<AlbedoSpectrum>,
     /// Vertical shape of the extinction; unset: Elterman's.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub profile: Option<AerosolProfileKind>,
@@ -147,6 +148,69 @@ pub struct AerosolOptics {
     /// the scene file's folder.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub phase_file: Option<PathBuf>,
+}
+
+/// A single-scattering albedo: one number for every wavelength, or
+/// `[wavelength_nm, albedo]` pairs (a sun photometer's retrieval, e.g.
+/// AERONET's at 440, 675, 870 and 1020 nm), linear in wavelength between
+/// them and constant beyond the first and the last.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum AlbedoSpectrum {
+    /// The same albedo at every wavelength.
+    Constant(f64),
+    /// `[wavelength_nm, albedo]` pairs, wavelengths increasing.
+    Spectrum(Vec<[f64; 2]>),
+}
+
+impl AlbedoSpectrum {
+    /// The albedo at `wavelength_nm`.
+    pub fn at(&self, wavelength_nm: f64) -> f64 {
+        match self {
+            Self::Constant(albedo) => *albedo,
+            Self::Spectrum(pairs) => {
+                let k = pairs.partition_point(|p| p[0] <= wavelength_nm);
+                match k {
+                    0 => pairs[0][1],
+                    k if k == pairs.len() => pairs[k - 1][1],
+                    k => {
+                        let ([x0, y0], [x1, y1]) = (pairs[k - 1], pairs[k]);
+                        y0 + (wavelength_nm - x0) / (x1 - x0) * (y1 - y0)
+                    }
+                }
+            }
+        }
+    }
+
+    /// Checks the albedos (0–1) and the wavelengths (220–4000 nm,
+    /// increasing, at least one pair).
+    fn validate(&self, parameter: &str) -> Result<(), SceneError> {
+        match self {
+            Self::Constant(albedo) => check_range(parameter, *albedo, 0.0, 1.0),
+            Self::Spectrum(pairs) => {
+                if pairs.is_empty() {
+                    return Err(SceneError::new(
+                        parameter,
+                        "an empty spectrum: give a number, or [wavelength_nm, albedo] pairs",
+                    ));
+                }
+                for (i, &[nm, albedo]) in pairs.iter().enumerate() {
+                    check_range(&format!("{parameter} wavelength (nm)"), nm, 220.0, 4000.0)?;
+                    check_range(parameter, albedo, 0.0, 1.0)?;
+                    if i > 0 && nm <= pairs[i - 1][0] {
+                        return Err(SceneError::new(
+                            parameter,
+                            format!(
+                                "wavelength {nm} nm does not increase from the pair before's {} nm",
+                                pairs[i - 1][0]
+                            ),
+                        ));
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
 }
 
 impl AerosolOptics {
@@ -312,10 +376,16 @@ impl AtmosphereParams {
 
     /// The aerosol's single-scattering albedo: `[atmosphere.aerosol]
     /// single_scattering_albedo`, else `aerosol_albedo`.
-    pub fn aerosol_single_scattering_albedo(&self) -> f64 {
+    pub fn aerosol_albedo_spectrum(&self) -> AlbedoSpectrum {
         self.aerosol
             .single_scattering_albedo
-            .unwrap_or(self.aerosol_albedo)
+            .clone()
+            .unwrap_or(AlbedoSpectrum::Constant(self.aerosol_albedo))
+    }
+
+    /// [`Self::aerosol_albedo_spectrum`] at `wavelength_nm`.
+    pub fn aerosol_single_scattering_albedo(&self, wavelength_nm: f64) -> f64 {
+        self.aerosol_albedo_spectrum().at(wavelength_nm)
     }
 
     /// The aerosol's phase function: `[atmosphere.aerosol] phase` with its
@@ -432,8 +502,8 @@ impl AtmosphereParams {
                 )
             })?;
         }
-        if let Some(w) = a.single_scattering_albedo {
-            check_range("atmosphere.aerosol.single_scattering_albedo", w, 0.0, 1.0)?;
+        if let Some(albedo) = &a.single_scattering_albedo {
+            albedo.validate("atmosphere.aerosol.single_scattering_albedo")?;
         }
         let exponential = a.profile == Some(AerosolProfileKind::Exponential);
         match (exponential, a.scale_height_m) {
@@ -758,7 +828,7 @@ mod tests {
             params.aerosol_phase_function().unwrap(),
             aerosol::PhaseFunction::HenyeyGreenstein { g: 0.7 }
         );
-        assert_eq!(params.aerosol_single_scattering_albedo(), 0.9);
+        assert_eq!(params.aerosol_single_scattering_albedo(500.0), 0.9);
     }
 
     #[test]

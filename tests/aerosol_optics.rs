@@ -282,3 +282,55 @@ fn a_tabulated_henyey_greenstein_renders_as_henyey_greenstein() {
         .resolved(sunset.sun.elevation_deg, &sunset.atmosphere);
     assert_eq!(resolved.control_variate, Some(true));
 }
+
+#[test]
+fn an_albedo_spectrum_is_the_constant_albedo_at_each_wavelength() {
+    // Linear between [440 nm, 0.8] and [675 nm, 1.0], constant beyond:
+    // at 440 nm the haze scatters as with albedo 0.8, at 675 nm as with 1.
+    let scene = |albedo: &str| {
+        Scene::from_toml(&format!(
+            "[sun]\nelevation_deg = 20.0\n[atmosphere.aerosol]\noptical_depth_550 = 0.6\n\
+             single_scattering_albedo = {albedo}\n"
+        ))
+        .unwrap()
+    };
+    let spectrum = scene("[[440.0, 0.8], [675.0, 1.0]]");
+    let probe = |scene: &Scene, nm: f64| {
+        Renderer::new(scene)
+            .unwrap()
+            .probe_radiance(60.0, 0.0, &[nm], 20_000)[0]
+    };
+    for (nm, constant) in [(440.0, "0.8"), (675.0, "1.0"), (900.0, "1.0")] {
+        let (a, b) = (probe(&spectrum, nm), probe(&scene(constant), nm));
+        let se = a.std_error.hypot(b.std_error);
+        assert!(
+            (a.radiance - b.radiance).abs() < 3.5 * se,
+            "{nm} nm: {a:?} vs {b:?}"
+        );
+    }
+    // A lower albedo darkens the haze: the two ends differ.
+    let (dark, bright) = (probe(&scene("0.8"), 550.0), probe(&scene("1.0"), 550.0));
+    assert!(bright.radiance - dark.radiance > 5.0 * bright.std_error.hypot(dark.std_error));
+    // The atmosphere command reports the albedo at its wavelength.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("albedo.toml");
+    std::fs::write(&path, spectrum.to_toml()).unwrap();
+    let v = atmosphere_json(&["--scene", path.to_str().unwrap(), "--wavelength", "550"]);
+    let albedo = v["aerosol_albedo"].as_f64().unwrap();
+    assert!(
+        (albedo - (0.8 + 0.2 * 110.0 / 235.0)).abs() < 1e-12,
+        "{albedo}"
+    );
+    for (bad, needle) in [
+        ("[[675.0, 0.9], [440.0, 0.9]]", "does not increase"),
+        ("[[440.0, 1.2]]", "0 to 1"),
+        ("[]", "empty"),
+        ("1.5", "0 to 1"),
+    ] {
+        let e = Scene::from_toml(&format!(
+            "[atmosphere.aerosol]\nsingle_scattering_albedo = {bad}"
+        ))
+        .unwrap_err();
+        assert!(e.to_string().contains(needle), "{bad}: {e}");
+    }
+}

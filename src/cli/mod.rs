@@ -724,7 +724,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
                 "rayleigh_scattering_m": atmosphere.rayleigh_scattering_per_m(altitude_m, wavelength),
                 "ozone_absorption_m": atmosphere.ozone_absorption_per_m(altitude_m, wavelength),
                 "aerosol_extinction_m": atmosphere.aerosol_extinction_per_m(altitude_m, wavelength),
-                "aerosol_albedo": scene.atmosphere.aerosol_single_scattering_albedo(),
+                "aerosol_albedo": scene.atmosphere.aerosol_single_scattering_albedo(wavelength),
                 "aerosol_asymmetry": scene.atmosphere.aerosol_mean_cosine(),
                 "optical_depth": depth,
             });

@@ -30,7 +30,7 @@ use super::columns::{ColumnTable, FixedStart};
 fn takes_table(estimator: TransmittanceEstimator, bounds: Bounds) -> bool {
     (estimator, bounds) == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight)
 }
-use crate::atmosphere::{AerosolSpectrum, Atmosphere};
+use crate::atmosphere::{AerosolSpectrum, AlbedoSpectrum, Atmosphere};
 use crate::physics::{aerosol, ozone, rayleigh, standard_atmosphere, sun};
 use crate::rng::Rng;
 
@@ -139,7 +139,7 @@ pub struct Medium {
     shell_terms: ShellTerms,
     pub ground_albedo: f64,
     /// The aerosol's single-scattering albedo.
-    pub aerosol_albedo: f64,
+    aerosol_albedo: AlbedoSpectrum,
     /// The aerosol's phase function.
     pub aerosol_phase: aerosol::PhaseFunction,
     /// The aerosol extinction's wavelength dependence, relative to the
@@ -275,6 +275,8 @@ pub struct SpectralLanes {
     ozone_min_m2: Lanes,
     /// Aerosol extinction relative to the reference wavelength (see [`Node`]).
     aerosol_factor: Lanes,
+    /// Aerosol single-scattering albedo.
+    aerosol_albedo: Lanes,
     /// Top-of-atmosphere spectral irradiance, W m⁻² nm⁻¹ (or 1 for a unit sun).
     pub sun_irradiance: Lanes,
     /// Majorants and residual bounds per slot of [`ShellTerms`] for these
@@ -285,9 +287,11 @@ pub struct SpectralLanes {
 
 /// The per-wavelength constants of one lane, in the order of
 /// [`LaneTable`]'s rows: Rayleigh cross-section (m²), Rayleigh phase γ,
-/// aerosol factor, solar irradiance, then the ozone cross-section (m²) at the
-/// 11 tabulated temperatures.
-type LaneConstants = [f64; 4 + 11];
+/// aerosol factor, solar irradiance, aerosol single-scattering albedo, then
+/// the ozone cross-section (m²) at the 11 tabulated temperatures.
+type LaneConstants = [f64; OZONE_CONSTANTS + 11];
+/// Index of the first ozone cross-section in [`LaneConstants`].
+const OZONE_CONSTANTS: usize = 5;
 
 /// The solar spectral irradiance at the top of the atmosphere that the
 /// lanes carry.
@@ -337,13 +341,15 @@ impl SolarSource {
 }
 
 fn lane_constants(wavelength_nm: f64, medium: &Medium, source: SolarSource) -> LaneConstants {
-    let mut c = [0.0; 15];
+    let mut c = [0.0; OZONE_CONSTANTS + 11];
     c[0] = rayleigh::cross_section_m2(wavelength_nm);
     c[1] = rayleigh::phase_gamma(wavelength_nm);
     c[2] = medium.aerosol_spectrum.factor(wavelength_nm);
     c[3] = source.irradiance_w_m2_nm(wavelength_nm);
+    c[4] = medium.aerosol_albedo.at(wavelength_nm);
     if medium.ozone_on {
-        c[4..].copy_from_slice(&ozone::CrossSections::get().at_wavelength(wavelength_nm));
+        c[OZONE_CONSTANTS..]
+            .copy_from_slice(&ozone::CrossSections::get().at_wavelength(wavelength_nm));
     }
     c
 }
@@ -442,6 +448,7 @@ impl SpectralLanes {
             ozone_min_m2: [0.0; LANES],
             ozone_m2: [[0.0; 11]; LANES],
             aerosol_factor: [0.0; LANES],
+            aerosol_albedo: [0.0; LANES],
             sun_irradiance: [0.0; LANES],
         };
         for (j, c) in constants.iter().enumerate() {
@@ -449,9 +456,11 @@ impl SpectralLanes {
             lanes.rayleigh_gamma[j] = c[1];
             lanes.aerosol_factor[j] = c[2];
             lanes.sun_irradiance[j] = c[3];
-            lanes.ozone_m2[j].copy_from_slice(&c[4..]);
-            lanes.ozone_max_m2[j] = c[4..].iter().copied().fold(0.0, f64::max);
-            lanes.ozone_min_m2[j] = c[4..].iter().copied().fold(f64::INFINITY, f64::min);
+            lanes.aerosol_albedo[j] = c[4];
+            let ozone = &c[OZONE_CONSTANTS..];
+            lanes.ozone_m2[j].copy_from_slice(ozone);
+            lanes.ozone_max_m2[j] = ozone.iter().copied().fold(0.0, f64::max);
+            lanes.ozone_min_m2[j] = ozone.iter().copied().fold(f64::INFINITY, f64::min);
         }
         let constants: [[f64; 4]; LANES] = std::array::from_fn(|j| {
             let j = if j < active { j } else { 0 };
@@ -631,7 +640,7 @@ impl Medium {
             shells,
             nodes,
             ground_albedo: p.ground_albedo,
-            aerosol_albedo: p.aerosol_single_scattering_albedo(),
+            aerosol_albedo: p.aerosol_albedo_spectrum(),
             aerosol_phase: p
                 .aerosol_phase_function()
                 .expect("a validated scene's phase function (Scene::validate builds it)"),
@@ -674,10 +683,10 @@ impl Medium {
         for j in 0..LANES {
             c.rayleigh[j] = lanes.rayleigh_m2[j] * air;
             let ext = aer * lanes.aerosol_factor[j];
-            c.aerosol_scattering[j] = ext * self.aerosol_albedo;
+            c.aerosol_scattering[j] = ext * lanes.aerosol_albedo[j];
             let o3_xs =
                 lanes.ozone_m2[j][k] + w * (lanes.ozone_m2[j][k + 1] - lanes.ozone_m2[j][k]);
-            c.absorption[j] = ext * (1.0 - self.aerosol_albedo) + o3 * o3_xs;
+            c.absorption[j] = ext * (1.0 - lanes.aerosol_albedo[j]) + o3 * o3_xs;
         }
         c
     }
