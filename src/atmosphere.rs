@@ -2,12 +2,16 @@
 //! and the resulting optical coefficients as pure functions of altitude and
 //! wavelength.
 
+use std::path::PathBuf;
+
 use serde::{Deserialize, Serialize};
 
+use crate::physics::phase_table::PhaseTable;
 use crate::physics::{
     aerosol, ozone, rayleigh, standard_atmosphere, DEFAULT_ATMOSPHERE_TOP_M, DOBSON_UNIT_PER_M2,
     EARTH_RADIUS_M,
 };
+use crate::scene::SceneError;
 
 /// Everything that defines the atmosphere and the planet under it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -31,6 +35,10 @@ pub struct AtmosphereParams {
     /// Aerosol single-scattering albedo.
     pub aerosol_albedo: f64,
     pub aerosol_phase: aerosol::PhaseModel,
+    /// The aerosol by its optical properties (`[atmosphere.aerosol]`); each
+    /// key given takes the place of the flat key above it stands for.
+    #[serde(skip_serializing_if = "AerosolOptics::is_unset")]
+    pub aerosol: AerosolOptics,
 }
 
 impl Default for AtmosphereParams {
@@ -46,23 +54,530 @@ impl Default for AtmosphereParams {
             aerosol_g: 0.7,
             aerosol_albedo: 0.9,
             aerosol_phase: aerosol::PhaseModel::HenyeyGreenstein,
+            aerosol: AerosolOptics::default(),
         }
     }
 }
 
+/// Vertical shape of the aerosol extinction (`[atmosphere.aerosol] profile`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "kebab-case")]
+pub enum AerosolProfileKind {
+    /// Elterman (1968), tabulated at 1 km steps to 50 km.
+    #[default]
+    Elterman,
+    /// exp(−altitude / `scale_height_m`).
+    Exponential,
+}
+
+/// Aerosol phase functions by name (`[atmosphere.aerosol] phase`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum AerosolPhaseKind {
+    /// Henyey–Greenstein with `asymmetry`.
+    HenyeyGreenstein,
+    /// Cornette–Shanks with `asymmetry`.
+    CornetteShanks,
+    /// Double Henyey–Greenstein with `g1`, `g2` and `weight`
+    /// ([`aerosol::double_henyey_greenstein`]).
+    DoubleHenyeyGreenstein,
+    /// Tabulated in `phase_file` ([`PhaseTable`]).
+    Table,
+}
+
+/// Valid range of the Ångström exponent. Particles much smaller than the
+/// wavelength scatter as λ⁻⁴ (Rayleigh's limit, the steepest any particle
+/// gives); the finest smoke measures about 2–2.5, and coarse dust and sea
+/// salt down to about −0.5 (Eck et al. 1999, *J. Geophys. Res.* 104,
+/// 31 333). Beyond −1 to 4 a value is a typing or unit error.
+pub const ANGSTROM_EXPONENT_RANGE: (f64, f64) = (-1.0, 4.0);
+/// Largest vertical aerosol optical depth at 550 nm: 25, as the thickest
+/// haze `aerosol_amount` allows (100 × Elterman's 0.249).
+pub const MAX_AEROSOL_OPTICAL_DEPTH: f64 = 25.0;
+/// Valid range of the exponential profile's scale height, m. Below 500 m
+/// the renderer's 50 m nodes (`render::medium`), linear in between, would
+/// stray from the exponential by more than (50/500)²/8 = 0.13 %; above 100 km it is no longer a profile but a
+/// constant over the atmosphere's height (typical hazes: 1–2 km).
+pub const SCALE_HEIGHT_RANGE_M: (f64, f64) = (500.0, 100_000.0);
+/// Reference wavelength of `optical_depth_550` and of the Ångström law, nm.
+pub const AEROSOL_REFERENCE_NM: f64 = 550.0;
+
+/// The aerosol by its optical properties: the `[atmosphere.aerosol]`
+/// table of a scene, every key optional. Unset, the aerosol is Elterman's
+/// with the flat keys of `[atmosphere]`, as before the table existed.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct AerosolOptics {
+    /// Vertical aerosol optical depth at 550 nm from sea level to the top
+    /// of the atmosphere (a sun photometer's AOD); replaces
+    /// `aerosol_amount`: the profile is scaled to give this column.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub optical_depth_550: Option<f64>,
+    /// Ångström exponent α: τ(λ) = τ₅₅₀ (λ / 550 nm)^−α, in place of
+    /// Elterman's spectral dependence.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub angstrom_exponent: Option<f64>,
+    /// Single-scattering albedo, 0–1: one number, or a spectrum of
+    /// `[wavelength_nm, albedo]` pairs; replaces `aerosol_albedo`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub single_scattering_albedo: Option<AlbedoSpectrum>,
+    /// Vertical shape of the extinction; unset: Elterman's.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub profile: Option<AerosolProfileKind>,
+    /// Scale height of the exponential profile, m.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub scale_height_m: Option<f64>,
+    /// Phase function; replaces `aerosol_phase`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub phase: Option<AerosolPhaseKind>,
+    /// Asymmetry parameter of Henyey–Greenstein or Cornette–Shanks;
+    /// replaces `aerosol_g`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub asymmetry: Option<f64>,
+    /// Double Henyey–Greenstein: asymmetry of the first lobe.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub g1: Option<f64>,
+    /// Double Henyey–Greenstein: asymmetry of the second lobe.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub g2: Option<f64>,
+    /// Double Henyey–Greenstein: weight of the first lobe, 0–1.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub weight: Option<f64>,
+    /// Tabulated phase function: a CSV file `angle_deg,phase`
+    /// ([`crate::physics::phase_table`]); a relative path is taken from
+    /// the scene file's folder.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub phase_file: Option<PathBuf>,
+}
+
+/// A single-scattering albedo: one number for every wavelength, or
+/// `[wavelength_nm, albedo]` pairs (a sun photometer's retrieval, e.g.
+/// AERONET's at 440, 675, 870 and 1020 nm), linear in wavelength between
+/// them and constant beyond the first and the last.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum AlbedoSpectrum {
+    /// The same albedo at every wavelength.
+    Constant(f64),
+    /// `[wavelength_nm, albedo]` pairs, wavelengths increasing.
+    Spectrum(Vec<[f64; 2]>),
+}
+
+impl AlbedoSpectrum {
+    /// The albedo at `wavelength_nm`.
+    pub fn at(&self, wavelength_nm: f64) -> f64 {
+        match self {
+            Self::Constant(albedo) => *albedo,
+            Self::Spectrum(pairs) => {
+                let k = pairs.partition_point(|p| p[0] <= wavelength_nm);
+                match k {
+                    0 => pairs[0][1],
+                    k if k == pairs.len() => pairs[k - 1][1],
+                    k => {
+                        let ([x0, y0], [x1, y1]) = (pairs[k - 1], pairs[k]);
+                        y0 + (wavelength_nm - x0) / (x1 - x0) * (y1 - y0)
+                    }
+                }
+            }
+        }
+    }
+
+    /// Checks the albedos (0–1) and the wavelengths (220–4000 nm,
+    /// increasing, at least one pair).
+    fn validate(&self, parameter: &str) -> Result<(), SceneError> {
+        match self {
+            Self::Constant(albedo) => check_range(parameter, *albedo, 0.0, 1.0),
+            Self::Spectrum(pairs) => {
+                if pairs.is_empty() {
+                    return Err(SceneError::new(
+                        parameter,
+                        "an empty spectrum: give a number, or [wavelength_nm, albedo] pairs",
+                    ));
+                }
+                for (i, &[nm, albedo]) in pairs.iter().enumerate() {
+                    check_range(&format!("{parameter} wavelength (nm)"), nm, 220.0, 4000.0)?;
+                    check_range(parameter, albedo, 0.0, 1.0)?;
+                    if i > 0 && nm <= pairs[i - 1][0] {
+                        return Err(SceneError::new(
+                            parameter,
+                            format!(
+                                "wavelength {nm} nm does not increase from the pair before's {} nm",
+                                pairs[i - 1][0]
+                            ),
+                        ));
+                    }
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+impl AerosolOptics {
+    /// Whether no key is set (the table is left out of a written scene).
+    pub fn is_unset(&self) -> bool {
+        *self == Self::default()
+    }
+}
+
+/// How the aerosol extinction depends on wavelength.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum AerosolSpectrum {
+    /// Elterman's, relative to 340 nm ([`aerosol::SpectralFactor`]).
+    Elterman340,
+    /// Elterman's, relative to 550 nm.
+    Elterman550,
+    /// (λ / 550 nm)^−α.
+    Angstrom {
+        /// The Ångström exponent α.
+        exponent: f64,
+    },
+}
+
+impl AerosolSpectrum {
+    /// Extinction at `wavelength_nm` relative to the reference wavelength
+    /// (340 nm for [`Self::Elterman340`], else 550 nm).
+    pub fn factor(self, wavelength_nm: f64) -> f64 {
+        match self {
+            Self::Elterman340 => aerosol::SpectralFactor::get().at(wavelength_nm),
+            Self::Elterman550 => {
+                let f = aerosol::SpectralFactor::get();
+                f.at(wavelength_nm) / f.at(AEROSOL_REFERENCE_NM)
+            }
+            Self::Angstrom { exponent } => (wavelength_nm / AEROSOL_REFERENCE_NM).powf(-exponent),
+        }
+    }
+}
+
+/// The aerosol extinction as a vertical profile at a reference wavelength
+/// times a spectral factor.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct AerosolColumn {
+    /// Exponential scale height, m; `None`: Elterman's profile.
+    scale_height_m: Option<f64>,
+    /// Factor on the profile's shape (Elterman's extinction at 340 nm,
+    /// m⁻¹, or the exponential's value 1 at the ground) giving the
+    /// extinction at the reference wavelength, m⁻¹.
+    scale: f64,
+    /// The spectral factor.
+    pub spectrum: AerosolSpectrum,
+}
+
+impl AerosolColumn {
+    /// The profile's shape at `altitude_m`.
+    fn shape(&self, altitude_m: f64) -> f64 {
+        match self.scale_height_m {
+            None => aerosol::Profile::get().extinction_340nm_per_m(altitude_m),
+            Some(h) => (-altitude_m / h).exp(),
+        }
+    }
+
+    /// Extinction at the reference wavelength, m⁻¹.
+    pub fn reference_extinction_per_m(&self, altitude_m: f64) -> f64 {
+        self.scale * self.shape(altitude_m)
+    }
+}
+
+/// Elterman's column from the ground to `top_m` at 340 nm.
+fn elterman_column_340nm(top_m: f64) -> f64 {
+    let profile = aerosol::Profile::get();
+    profile.optical_depth_340nm(0.0) - profile.optical_depth_340nm(top_m)
+}
+
+/// A value within `lo..=hi`, or an error naming `parameter` and the range.
+fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            parameter,
+            format!(
+                "{} is outside the valid range {lo} to {hi}",
+                crate::scene::show_number(value)
+            ),
+        ))
+    }
+}
+
 impl AtmosphereParams {
+    /// Whether the aerosol's amount, profile and spectrum are Elterman's
+    /// with `aerosol_amount` (no key of `[atmosphere.aerosol]` changes them).
+    fn aerosol_is_elterman(&self) -> bool {
+        let a = &self.aerosol;
+        a.optical_depth_550.is_none()
+            && a.angstrom_exponent.is_none()
+            && a.profile.unwrap_or_default() == AerosolProfileKind::Elterman
+    }
+
+    /// The aerosol extinction's profile and spectrum. Without the keys of
+    /// `[atmosphere.aerosol]` that change them, Elterman's profile at 340 nm
+    /// times `aerosol_amount`, as before they existed (to the bit). Else the
+    /// profile's shape scaled so that its column from the ground to the top
+    /// of the atmosphere at 550 nm is `optical_depth_550` (unset:
+    /// `aerosol_amount` times Elterman's column there), times the Ångström
+    /// law (unset: Elterman's spectrum relative to 550 nm).
+    pub fn aerosol_column(&self) -> AerosolColumn {
+        if self.aerosol_is_elterman() {
+            return AerosolColumn {
+                scale_height_m: None,
+                scale: self.aerosol_amount,
+                spectrum: AerosolSpectrum::Elterman340,
+            };
+        }
+        let a = &self.aerosol;
+        let top = self.top_altitude_m;
+        let depth_550 = a.optical_depth_550.unwrap_or_else(|| {
+            self.aerosol_amount
+                * elterman_column_340nm(top)
+                * aerosol::SpectralFactor::get().at(AEROSOL_REFERENCE_NM)
+        });
+        let spectrum = match a.angstrom_exponent {
+            Some(exponent) => AerosolSpectrum::Angstrom { exponent },
+            None => AerosolSpectrum::Elterman550,
+        };
+        let scale_height_m = match a.profile.unwrap_or_default() {
+            AerosolProfileKind::Elterman => None,
+            AerosolProfileKind::Exponential => Some(a.scale_height_m.unwrap_or(f64::NAN)),
+        };
+        // The shape's column from the ground to the top, in closed form.
+        let shape_column = match scale_height_m {
+            None => elterman_column_340nm(top),
+            Some(h) => h * -(-top / h).exp_m1(),
+        };
+        AerosolColumn {
+            scale_height_m,
+            scale: depth_550 / shape_column,
+            spectrum,
+        }
+    }
+
     /// Vertical aerosol optical depth from the ground to the top of the
     /// atmosphere at `wavelength_nm` (0 without aerosols): the column of
     /// [`Atmosphere::aerosol_extinction_per_m`], in closed form (Elterman's
-    /// profile is piecewise linear), without building an [`Atmosphere`].
+    /// profile is piecewise linear, the other an exponential), without
+    /// building an [`Atmosphere`].
     pub fn aerosol_optical_depth(&self, wavelength_nm: f64) -> f64 {
         if !self.aerosols {
             return 0.0;
         }
-        let profile = aerosol::Profile::get();
-        let column_340nm =
-            profile.optical_depth_340nm(0.0) - profile.optical_depth_340nm(self.top_altitude_m);
-        self.aerosol_amount * column_340nm * aerosol::SpectralFactor::get().at(wavelength_nm)
+        if self.aerosol_is_elterman() {
+            let column_340nm = elterman_column_340nm(self.top_altitude_m);
+            return self.aerosol_amount
+                * column_340nm
+                * aerosol::SpectralFactor::get().at(wavelength_nm);
+        }
+        let column = self.aerosol_column();
+        let depth_550 = match column.scale_height_m {
+            None => column.scale * elterman_column_340nm(self.top_altitude_m),
+            Some(h) => column.scale * h * -(-self.top_altitude_m / h).exp_m1(),
+        };
+        depth_550 * column.spectrum.factor(wavelength_nm)
+    }
+
+    /// The aerosol's single-scattering albedo: `[atmosphere.aerosol]
+    /// single_scattering_albedo`, else `aerosol_albedo`.
+    pub fn aerosol_albedo_spectrum(&self) -> AlbedoSpectrum {
+        self.aerosol
+            .single_scattering_albedo
+            .clone()
+            .unwrap_or(AlbedoSpectrum::Constant(self.aerosol_albedo))
+    }
+
+    /// [`Self::aerosol_albedo_spectrum`] at `wavelength_nm`.
+    pub fn aerosol_single_scattering_albedo(&self, wavelength_nm: f64) -> f64 {
+        self.aerosol_albedo_spectrum().at(wavelength_nm)
+    }
+
+    /// The aerosol's phase function: `[atmosphere.aerosol] phase` with its
+    /// parameters, else `aerosol_phase` with `aerosol_g`. A table is read
+    /// once per process ([`PhaseTable::cached`]); the error names the file,
+    /// the line and the valid form.
+    pub fn aerosol_phase_function(&self) -> Result<aerosol::PhaseFunction, SceneError> {
+        use aerosol::PhaseFunction as F;
+        let a = &self.aerosol;
+        let g = a.asymmetry.unwrap_or(self.aerosol_g);
+        let kind = a.phase.unwrap_or(match self.aerosol_phase {
+            aerosol::PhaseModel::HenyeyGreenstein => AerosolPhaseKind::HenyeyGreenstein,
+            aerosol::PhaseModel::CornetteShanks => AerosolPhaseKind::CornetteShanks,
+        });
+        let missing = |key: &str, what: &str| {
+            SceneError::new(
+                &format!("atmosphere.aerosol.{key}"),
+                format!("phase = \"{what}\" needs {key}"),
+            )
+        };
+        Ok(match kind {
+            AerosolPhaseKind::HenyeyGreenstein => F::HenyeyGreenstein { g },
+            AerosolPhaseKind::CornetteShanks => F::CornetteShanks { g },
+            AerosolPhaseKind::DoubleHenyeyGreenstein => {
+                let dhg = "double-henyey-greenstein";
+                F::DoubleHenyeyGreenstein {
+                    g1: a.g1.ok_or_else(|| missing("g1", dhg))?,
+                    g2: a.g2.ok_or_else(|| missing("g2", dhg))?,
+                    weight: a.weight.ok_or_else(|| missing("weight", dhg))?,
+                }
+            }
+            AerosolPhaseKind::Table => {
+                let path = a
+                    .phase_file
+                    .as_deref()
+                    .ok_or_else(|| missing("phase_file", "table"))?;
+                F::Table(
+                    PhaseTable::cached(path)
+                        .map_err(|e| SceneError::new("atmosphere.aerosol.phase_file", e))?,
+                )
+            }
+        })
+    }
+
+    /// The aerosol phase function's mean cosine (asymmetry parameter); NaN
+    /// where the phase function cannot be built (a scene not validated).
+    pub fn aerosol_mean_cosine(&self) -> f64 {
+        self.aerosol_phase_function()
+            .map_or(f64::NAN, |p| p.mean_cosine())
+    }
+
+    /// Checks the aerosol's parameters, flat and `[atmosphere.aerosol]`:
+    /// ranges, keys that belong together, a flat key and the table key
+    /// that replaces it not both set, and the phase function file.
+    pub fn validate_aerosol(&self) -> Result<(), SceneError> {
+        check_range("aerosol amount", self.aerosol_amount, 0.0, 100.0)?;
+        check_range("aerosol g", self.aerosol_g, -0.99, 0.99)?;
+        check_range("aerosol albedo", self.aerosol_albedo, 0.0, 1.0)?;
+        let a = &self.aerosol;
+        let default = Self::default();
+        // (table key given, flat key differs from its default, names).
+        let replaced = [
+            (
+                a.optical_depth_550.is_some(),
+                self.aerosol_amount != default.aerosol_amount,
+                "optical_depth_550",
+                "aerosol_amount",
+            ),
+            (
+                a.single_scattering_albedo.is_some(),
+                self.aerosol_albedo != default.aerosol_albedo,
+                "single_scattering_albedo",
+                "aerosol_albedo",
+            ),
+            (
+                a.asymmetry.is_some(),
+                self.aerosol_g != default.aerosol_g,
+                "asymmetry",
+                "aerosol_g",
+            ),
+            (
+                a.phase.is_some(),
+                self.aerosol_phase != default.aerosol_phase,
+                "phase",
+                "aerosol_phase",
+            ),
+        ];
+        for (given, flat_set, key, flat) in replaced {
+            if given && flat_set {
+                return Err(SceneError::new(
+                    &format!("atmosphere.aerosol.{key}"),
+                    format!("replaces [atmosphere] {flat}: set one of them, not both"),
+                ));
+            }
+        }
+        if let Some(tau) = a.optical_depth_550 {
+            check_range(
+                "atmosphere.aerosol.optical_depth_550",
+                tau,
+                0.0,
+                MAX_AEROSOL_OPTICAL_DEPTH,
+            )?;
+        }
+        if let Some(alpha) = a.angstrom_exponent {
+            let (lo, hi) = ANGSTROM_EXPONENT_RANGE;
+            check_range("atmosphere.aerosol.angstrom_exponent", alpha, lo, hi).map_err(|e| {
+                SceneError::new(
+                    &e.parameter,
+                    format!(
+                        "{} (4 is Rayleigh's λ⁻⁴, the steepest any particle gives; \
+                         coarse dust reaches about −0.5)",
+                        e.message
+                    ),
+                )
+            })?;
+        }
+        if let Some(albedo) = &a.single_scattering_albedo {
+            albedo.validate("atmosphere.aerosol.single_scattering_albedo")?;
+        }
+        let exponential = a.profile == Some(AerosolProfileKind::Exponential);
+        match (exponential, a.scale_height_m) {
+            (true, None) => {
+                return Err(SceneError::new(
+                    "atmosphere.aerosol.scale_height_m",
+                    "profile = \"exponential\" needs scale_height_m",
+                ))
+            }
+            (false, Some(_)) => {
+                return Err(SceneError::new(
+                    "atmosphere.aerosol.scale_height_m",
+                    "belongs to profile = \"exponential\" (valid profiles: elterman, exponential)",
+                ))
+            }
+            (true, Some(h)) => {
+                let (lo, hi) = SCALE_HEIGHT_RANGE_M;
+                check_range("atmosphere.aerosol.scale_height_m", h, lo, hi)?;
+            }
+            (false, None) => {}
+        }
+        let kind = a.phase.unwrap_or(AerosolPhaseKind::HenyeyGreenstein);
+        let belongs = [
+            (
+                "asymmetry",
+                a.asymmetry,
+                matches!(
+                    kind,
+                    AerosolPhaseKind::HenyeyGreenstein | AerosolPhaseKind::CornetteShanks
+                ),
+                "henyey-greenstein or cornette-shanks",
+            ),
+            (
+                "g1",
+                a.g1,
+                kind == AerosolPhaseKind::DoubleHenyeyGreenstein,
+                "double-henyey-greenstein",
+            ),
+            (
+                "g2",
+                a.g2,
+                kind == AerosolPhaseKind::DoubleHenyeyGreenstein,
+                "double-henyey-greenstein",
+            ),
+            (
+                "weight",
+                a.weight,
+                kind == AerosolPhaseKind::DoubleHenyeyGreenstein,
+                "double-henyey-greenstein",
+            ),
+        ];
+        for (key, value, fits, phases) in belongs {
+            let Some(value) = value else { continue };
+            let parameter = format!("atmosphere.aerosol.{key}");
+            if !fits {
+                return Err(SceneError::new(
+                    &parameter,
+                    format!("belongs to phase = {phases}"),
+                ));
+            }
+            if key == "weight" {
+                check_range(&parameter, value, 0.0, 1.0)?;
+            } else {
+                check_range(&parameter, value, -0.99, 0.99)?;
+            }
+        }
+        if a.phase_file.is_some() && kind != AerosolPhaseKind::Table {
+            return Err(SceneError::new(
+                "atmosphere.aerosol.phase_file",
+                "belongs to phase = \"table\"",
+            ));
+        }
+        self.aerosol_phase_function()?;
+        Ok(())
     }
 }
 
@@ -72,6 +587,8 @@ pub struct Atmosphere {
     pub params: AtmosphereParams,
     /// Factor applied to the AFGL ozone profile (target column / own column).
     ozone_scale: f64,
+    /// The aerosol extinction's profile and spectrum.
+    aerosol: AerosolColumn,
 }
 
 /// Vertical optical depths from some altitude to the top of the atmosphere.
@@ -91,6 +608,7 @@ impl Atmosphere {
             (true, Some(du)) => du / own_du,
         };
         Self {
+            aerosol: params.aerosol_column(),
             params,
             ozone_scale,
         }
@@ -124,13 +642,21 @@ impl Atmosphere {
         }
     }
 
-    /// Aerosol extinction at 340 nm, m⁻¹, scaled by the aerosol amount.
-    pub fn aerosol_extinction_340nm_per_m(&self, altitude_m: f64) -> f64 {
+    /// Aerosol extinction at the reference wavelength, m⁻¹: 340 nm (times
+    /// the aerosol amount) for Elterman's spectrum, else 550 nm
+    /// ([`AtmosphereParams::aerosol_column`]).
+    pub fn aerosol_reference_extinction_per_m(&self, altitude_m: f64) -> f64 {
         if self.params.aerosols && self.inside(altitude_m) {
-            self.params.aerosol_amount * aerosol::Profile::get().extinction_340nm_per_m(altitude_m)
+            self.aerosol.reference_extinction_per_m(altitude_m)
         } else {
             0.0
         }
+    }
+
+    /// Aerosol extinction at `wavelength_nm` relative to the reference
+    /// wavelength of [`Self::aerosol_reference_extinction_per_m`].
+    pub fn aerosol_spectral_factor(&self, wavelength_nm: f64) -> f64 {
+        self.aerosol.spectrum.factor(wavelength_nm)
     }
 
     /// Rayleigh scattering coefficient, m⁻¹.
@@ -151,8 +677,8 @@ impl Atmosphere {
 
     /// Aerosol extinction coefficient, m⁻¹.
     pub fn aerosol_extinction_per_m(&self, altitude_m: f64, wavelength_nm: f64) -> f64 {
-        self.aerosol_extinction_340nm_per_m(altitude_m)
-            * aerosol::SpectralFactor::get().at(wavelength_nm)
+        self.aerosol_reference_extinction_per_m(altitude_m)
+            * self.aerosol_spectral_factor(wavelength_nm)
     }
 
     /// Total ozone column of this atmosphere, Dobson units.
@@ -233,6 +759,76 @@ mod tests {
             ..AtmosphereParams::default()
         };
         assert_eq!(none.aerosol_optical_depth(550.0), 0.0);
+    }
+
+    #[test]
+    fn the_aerosol_by_its_optical_depth_gives_that_column() {
+        // τ₅₅₀ and the Ångström law over the column from the ground, by
+        // either profile, against the numerical column of the coefficients.
+        for (profile, scale_height_m) in [
+            (None, None),
+            (Some(AerosolProfileKind::Exponential), Some(1_500.0)),
+        ] {
+            let params = AtmosphereParams {
+                aerosol: AerosolOptics {
+                    optical_depth_550: Some(0.3),
+                    angstrom_exponent: Some(1.1),
+                    profile,
+                    scale_height_m,
+                    ..AerosolOptics::default()
+                },
+                ..AtmosphereParams::default()
+            };
+            params.validate_aerosol().unwrap();
+            let atmosphere = Atmosphere::new(params.clone());
+            for nm in [350.0, 550.0, 870.0] {
+                let want = 0.3 * (nm / 550.0_f64).powf(-1.1);
+                let closed = params.aerosol_optical_depth(nm);
+                let numerical = atmosphere.vertical_optical_depth(0.0, nm).aerosol;
+                assert!((closed / want - 1.0).abs() < 1e-12, "{closed} {want}");
+                assert!((numerical / want - 1.0).abs() < 1e-5, "{numerical} {want}");
+            }
+        }
+        // Only the spectrum changed: Elterman's profile with amount 2 keeps
+        // its column at 550 nm.
+        let elterman = AtmosphereParams {
+            aerosol_amount: 2.0,
+            ..AtmosphereParams::default()
+        };
+        let angstrom = AtmosphereParams {
+            aerosol: AerosolOptics {
+                angstrom_exponent: Some(0.0),
+                ..AerosolOptics::default()
+            },
+            ..elterman.clone()
+        };
+        let (a, b) = (
+            elterman.aerosol_optical_depth(550.0),
+            angstrom.aerosol_optical_depth(550.0),
+        );
+        assert!((a / b - 1.0).abs() < 1e-12, "{a} {b}");
+        assert_eq!(angstrom.aerosol_optical_depth(400.0), b);
+    }
+
+    #[test]
+    fn without_the_new_keys_the_aerosol_is_computed_as_before() {
+        // Bit for bit: amount × Elterman at 340 nm × the spectral factor.
+        let params = AtmosphereParams {
+            aerosol_amount: 3.0,
+            ..AtmosphereParams::default()
+        };
+        let atmosphere = Atmosphere::new(params.clone());
+        for z in [0.0, 750.0, 12_345.0] {
+            let old = 3.0
+                * aerosol::Profile::get().extinction_340nm_per_m(z)
+                * aerosol::SpectralFactor::get().at(500.0);
+            assert_eq!(atmosphere.aerosol_extinction_per_m(z, 500.0), old);
+        }
+        assert_eq!(
+            params.aerosol_phase_function().unwrap(),
+            aerosol::PhaseFunction::HenyeyGreenstein { g: 0.7 }
+        );
+        assert_eq!(params.aerosol_single_scattering_albedo(500.0), 0.9);
     }
 
     #[test]

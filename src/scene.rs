@@ -430,7 +430,15 @@ impl Scene {
         Self::from_toml(text)
     }
 
+    /// A scene from its TOML text; a relative `phase_file` is taken from
+    /// the working directory.
     pub fn from_toml(text: &str) -> Result<Self, SceneError> {
+        Self::from_toml_in(text, None)
+    }
+
+    /// [`Self::from_toml`] for a file in folder `base`, from which a
+    /// relative `phase_file` is then taken.
+    pub fn from_toml_in(text: &str, base: Option<&Path>) -> Result<Self, SceneError> {
         let table: toml::Table = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         // A fisheye's field of view defaults to 180° (the whole sky), a
         // perspective camera's to 90°: the shared field's default is the
@@ -445,6 +453,11 @@ impl Scene {
         let mut scene: Self = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
         if fisheye_without_fov {
             scene.camera.fov_deg = CameraKind::Fisheye.default_fov_deg();
+        }
+        if let (Some(base), Some(file)) = (base, &mut scene.atmosphere.aerosol.phase_file) {
+            if file.is_relative() {
+                *file = base.join(&*file);
+            }
         }
         scene.place_sun()?;
         scene.validate()?;
@@ -534,7 +547,7 @@ impl Scene {
                 e.utf8_error().valid_up_to()
             ))
         })?;
-        Self::from_toml(&text).map_err(|e| SceneError {
+        Self::from_toml_in(&text, path.parent()).map_err(|e| SceneError {
             parameter: e.parameter,
             message: format!("{} (in '{}')", e.message, path.display()),
         })
@@ -582,9 +595,7 @@ impl Scene {
         if let Some(du) = a.ozone_du {
             check_range("ozone column (DU)", du, 0.0, 2_000.0)?;
         }
-        check_range("aerosol amount", a.aerosol_amount, 0.0, 100.0)?;
-        check_range("aerosol g", a.aerosol_g, -0.99, 0.99)?;
-        check_range("aerosol albedo", a.aerosol_albedo, 0.0, 1.0)?;
+        a.validate_aerosol()?;
         let r = &self.render;
         if r.width == 0 || r.width > 65_536 {
             return Err(SceneError::new(
@@ -695,6 +706,19 @@ mod tests {
             let again = Scene::from_toml(&scene.to_toml()).unwrap();
             assert_eq!(scene, again, "{name}");
         }
+    }
+
+    #[test]
+    fn an_aerosol_table_round_trips_and_is_left_out_when_unset() {
+        let toml = "[atmosphere.aerosol]\noptical_depth_550 = 0.2\nangstrom_exponent = 0.8\n\
+                    single_scattering_albedo = 0.95\nprofile = \"exponential\"\n\
+                    scale_height_m = 2000.0\nphase = \"double-henyey-greenstein\"\n\
+                    g1 = 0.8\ng2 = -0.2\nweight = 0.9\n";
+        let scene = Scene::from_toml(toml).unwrap();
+        let text = scene.to_toml();
+        assert!(text.contains("[atmosphere.aerosol]"), "{text}");
+        assert_eq!(Scene::from_toml(&text).unwrap(), scene);
+        assert!(!Scene::default().to_toml().contains("aerosol]"));
     }
 
     #[test]

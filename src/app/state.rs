@@ -547,11 +547,18 @@ impl AppState {
         }
     }
 
-    /// Aerosol amount (multiple of the standard profile), clamped to [`AEROSOL_AMOUNT_RANGE`].
+    /// Aerosol amount (multiple of the standard profile), clamped to
+    /// [`AEROSOL_AMOUNT_RANGE`]. A changed amount takes the place of the
+    /// scene's `[atmosphere.aerosol] optical_depth_550`, as
+    /// `--aerosol-amount` does.
     pub fn set_aerosol_amount(&mut self, amount: f64) {
+        let before = self.scene.atmosphere.aerosol_amount;
         self.update(amount, AEROSOL_AMOUNT_RANGE, |s| {
             &mut s.atmosphere.aerosol_amount
         });
+        if self.scene.atmosphere.aerosol_amount != before {
+            self.scene.atmosphere.aerosol.optical_depth_550 = None;
+        }
     }
 
     /// Ozone on or off.
@@ -765,6 +772,17 @@ mod tests {
         assert!(!state.is_dirty(), "pausing keeps the accumulation");
         state.display.exposure_ev = 3.0;
         assert!(!state.is_dirty(), "display settings need no new render");
+    }
+
+    #[test]
+    fn the_amount_slider_replaces_a_scenes_optical_depth() {
+        let scene = Scene::from_toml("[atmosphere.aerosol]\noptical_depth_550 = 0.1").unwrap();
+        let mut state = AppState::new(scene);
+        state.set_aerosol_amount(1.0);
+        assert_eq!(state.atmosphere().aerosol.optical_depth_550, Some(0.1));
+        state.set_aerosol_amount(2.0);
+        assert_eq!(state.atmosphere().aerosol.optical_depth_550, None);
+        assert!(state.scene().validate().is_ok());
     }
 
     #[test]

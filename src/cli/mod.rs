@@ -51,7 +51,7 @@ fn control_variate_note(scene: &Scene) -> Option<String> {
                  (aerosol optical depth {:.3} at 550 nm, g {}; left unset it is off past {} \
                  or outside g {g_min} to {g_max}): expect far more noise, and negative pixels",
                 a.aerosol_optical_depth(550.0),
-                a.aerosol_g,
+                integrator::control_aerosol_g(a),
                 integrator::CONTROL_MAX_AEROSOL_DEPTH,
             )
         })
@@ -257,6 +257,16 @@ pub struct SceneArgs {
     /// optical depth 0.249 at 550 nm, a hazy day) [default: 1].
     #[arg(long, allow_negative_numbers = true, value_name = "X")]
     pub aerosol_amount: Option<f64>,
+    /// Vertical aerosol optical depth at 550 nm from sea level, 0 to 25 (a
+    /// sun photometer's AOD), in place of --aerosol-amount; the profile
+    /// keeps its shape (`[atmosphere.aerosol] optical_depth_550`).
+    #[arg(long, allow_negative_numbers = true, value_name = "TAU")]
+    pub aod550: Option<f64>,
+    /// Ångström exponent, -1 to 4: aerosol optical depth ∝ λ^-A about 550
+    /// nm, in place of Elterman's spectrum (`[atmosphere.aerosol]
+    /// angstrom_exponent`).
+    #[arg(long, allow_negative_numbers = true, value_name = "A")]
+    pub angstrom: Option<f64>,
     /// Total ozone column, Dobson units, 0 to 2000 [default: the AFGL
     /// profile's own, about 344].
     #[arg(long, allow_negative_numbers = true, value_name = "DU")]
@@ -383,8 +393,26 @@ impl SceneArgs {
         if self.no_ozone {
             scene.atmosphere.ozone = false;
         }
+        if self.aerosol_amount.is_some() && self.aod550.is_some() {
+            return Err(SceneError::new(
+                "aerosol",
+                "--aerosol-amount and --aod550 both set the amount of aerosol: give one \
+                 (--aerosol-amount multiplies Elterman's profile, --aod550 sets the optical \
+                 depth at 550 nm)",
+            ));
+        }
+        // Each flag takes the place of the scene's other way to set the
+        // amount, so that a scene's setting never conflicts with a flag.
         if let Some(v) = self.aerosol_amount {
             scene.atmosphere.aerosol_amount = v;
+            scene.atmosphere.aerosol.optical_depth_550 = None;
+        }
+        if let Some(v) = self.aod550 {
+            scene.atmosphere.aerosol.optical_depth_550 = Some(v);
+            scene.atmosphere.aerosol_amount = 1.0;
+        }
+        if let Some(v) = self.angstrom {
+            scene.atmosphere.aerosol.angstrom_exponent = Some(v);
         }
         if let Some(v) = self.ozone_du {
             scene.atmosphere.ozone_du = Some(v);
@@ -441,8 +469,14 @@ impl SceneArgs {
                 ignored.join(", ")
             ));
         }
-        if self.aerosol_amount.is_some() && !scene.atmosphere.aerosols {
-            notes.push("--aerosol-amount has no effect without aerosols (--no-aerosols, or `aerosols = false` in the scene)".into());
+        for (flag, given) in [
+            ("--aerosol-amount", self.aerosol_amount.is_some()),
+            ("--aod550", self.aod550.is_some()),
+            ("--angstrom", self.angstrom.is_some()),
+        ] {
+            if given && !scene.atmosphere.aerosols {
+                notes.push(format!("{flag} has no effect without aerosols (--no-aerosols, or `aerosols = false` in the scene)"));
+            }
         }
         if (self.lat.is_some() || self.lon.is_some()) && scene.sun.date_time.is_none() {
             notes.push("--lat/--lon place the Sun only with a date and time (--time, or --time-start for a timelapse)".into());
@@ -690,6 +724,8 @@ pub fn run(command: Command) -> Result<(), CliError> {
                 "rayleigh_scattering_m": atmosphere.rayleigh_scattering_per_m(altitude_m, wavelength),
                 "ozone_absorption_m": atmosphere.ozone_absorption_per_m(altitude_m, wavelength),
                 "aerosol_extinction_m": atmosphere.aerosol_extinction_per_m(altitude_m, wavelength),
+                "aerosol_albedo": scene.atmosphere.aerosol_single_scattering_albedo(wavelength),
+                "aerosol_asymmetry": scene.atmosphere.aerosol_mean_cosine(),
                 "optical_depth": depth,
             });
             if json {

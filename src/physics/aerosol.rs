@@ -1,5 +1,6 @@
 //! Aerosols: Elterman's (1968) vertical extinction profile, its wavelength
-//! dependence, and the Henyey–Greenstein and Cornette–Shanks phase functions.
+//! dependence, and the phase functions: Henyey–Greenstein, Cornette–Shanks,
+//! double Henyey–Greenstein, or a table ([`PhaseFunction`]).
 //!
 //! Elterman, L. (1968), *UV, Visible, and IR Attenuation for Altitudes to
 //! 50 km*, AFCRL-68-0153. Its aerosol-only column is available to us at
@@ -13,9 +14,10 @@
 //! (piecewise Ångström law), and extrapolated with the end exponents.
 
 use std::f64::consts::PI;
-use std::sync::OnceLock;
+use std::sync::{Arc, OnceLock};
 
 use crate::data::{self, Table};
+use crate::physics::phase_table::PhaseTable;
 use crate::physics::{ozone, rayleigh, standard_atmosphere};
 
 /// Elterman's sea-level-to-50 km aerosol extinction at 340 nm, per level.
@@ -229,6 +231,95 @@ impl PhaseModel {
     }
 }
 
+/// The double Henyey–Greenstein phase function per steradian: `weight` ×
+/// HG(`g1`) + (1 − `weight`) × HG(`g2`), usually a forward lobe (g1 > 0)
+/// and a backward one (g2 < 0). Kattawar, G. W. (1975), *A three-parameter
+/// analytic phase function for multiple scattering calculations*, JQSRT 15,
+/// 839–849 (his α, g₁, g₂).
+pub fn double_henyey_greenstein(mu: f64, g1: f64, g2: f64, weight: f64) -> f64 {
+    weight * henyey_greenstein(mu, g1) + (1.0 - weight) * henyey_greenstein(mu, g2)
+}
+
+/// The aerosol's phase function with its parameters, as the renderer
+/// evaluates, samples and expands it. Every variant's sampling density is
+/// exactly its [`Self::eval`], and its [`Self::legendre_moments`] are exact,
+/// so the estimators that divide by the one or integrate with the other
+/// stay unbiased.
+#[derive(Clone, Debug, PartialEq)]
+pub enum PhaseFunction {
+    /// Henyey & Greenstein (1941).
+    HenyeyGreenstein {
+        /// Asymmetry parameter (its mean cosine), −1 to 1.
+        g: f64,
+    },
+    /// Cornette & Shanks (1992).
+    CornetteShanks {
+        /// The parameter g of its Henyey–Greenstein factor.
+        g: f64,
+    },
+    /// [`double_henyey_greenstein`].
+    DoubleHenyeyGreenstein {
+        /// Asymmetry parameter of the first lobe.
+        g1: f64,
+        /// Asymmetry parameter of the second lobe.
+        g2: f64,
+        /// Weight of the first lobe, 0–1.
+        weight: f64,
+    },
+    /// Tabulated against the scattering angle ([`PhaseTable`]).
+    Table(Arc<PhaseTable>),
+}
+
+impl PhaseFunction {
+    /// Phase function per steradian; `mu` is the cosine between the
+    /// incident and scattered propagation directions.
+    pub fn eval(&self, mu: f64) -> f64 {
+        match self {
+            Self::HenyeyGreenstein { g } => henyey_greenstein(mu, *g),
+            Self::CornetteShanks { g } => cornette_shanks(mu, *g),
+            Self::DoubleHenyeyGreenstein { g1, g2, weight } => {
+                double_henyey_greenstein(mu, *g1, *g2, *weight)
+            }
+            Self::Table(table) => table.eval(mu),
+        }
+    }
+
+    /// A cosine drawn with density [`Self::eval`] (× 2π per unit μ): the
+    /// double Henyey–Greenstein by choosing its lobe with probability
+    /// `weight` (one uniform number), then sampling that lobe.
+    pub fn sample(&self, mut uniform: impl FnMut() -> f64) -> f64 {
+        match self {
+            Self::HenyeyGreenstein { g } => PhaseModel::HenyeyGreenstein.sample(*g, uniform),
+            Self::CornetteShanks { g } => PhaseModel::CornetteShanks.sample(*g, uniform),
+            Self::DoubleHenyeyGreenstein { g1, g2, weight } => {
+                let g = if uniform() < *weight { *g1 } else { *g2 };
+                sample_henyey_greenstein(uniform(), g)
+            }
+            Self::Table(table) => table.sample(uniform()),
+        }
+    }
+
+    /// Legendre moments k_l = 2π ∫ p(μ) P_l(μ) dμ, l = 0..N (see
+    /// [`PhaseModel::legendre_moments`]); the double Henyey–Greenstein's
+    /// are weight·g1^l + (1 − weight)·g2^l.
+    pub fn legendre_moments<const N: usize>(&self) -> [f64; N] {
+        match self {
+            Self::HenyeyGreenstein { g } => PhaseModel::HenyeyGreenstein.legendre_moments(*g),
+            Self::CornetteShanks { g } => PhaseModel::CornetteShanks.legendre_moments(*g),
+            Self::DoubleHenyeyGreenstein { g1, g2, weight } => std::array::from_fn(|l| {
+                weight * g1.powi(l as i32) + (1.0 - weight) * g2.powi(l as i32)
+            }),
+            Self::Table(table) => table.legendre_moments(),
+        }
+    }
+
+    /// The mean cosine of the scattering angle (the asymmetry parameter;
+    /// for Cornette–Shanks not its `g`).
+    pub fn mean_cosine(&self) -> f64 {
+        self.legendre_moments::<2>()[1]
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -305,6 +396,67 @@ mod tests {
                 assert!((integral - 1.0).abs() < 1e-3, "{model:?} g={g}: {integral}");
             }
         }
+    }
+
+    #[test]
+    fn double_henyey_greenstein_is_normalised_and_its_moments_exact() {
+        // ∫ p dΩ = 2π ∫ p dμ by the midpoint rule on 200 000 points, and
+        // the moments w g1^l + (1 − w) g2^l against the same quadrature.
+        for (g1, g2, weight) in [(0.8, -0.3, 0.9), (0.95, -0.6, 0.7), (0.5, 0.2, 0.0)] {
+            let phase = PhaseFunction::DoubleHenyeyGreenstein { g1, g2, weight };
+            let k: [f64; 5] = phase.legendre_moments();
+            let n = 200_000;
+            let mut q = [0.0; 5];
+            for i in 0..n {
+                let mu = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(n);
+                let w = 2.0 * PI * phase.eval(mu) * 2.0 / f64::from(n);
+                let p2 = 0.5 * (3.0 * mu * mu - 1.0);
+                let p3 = 0.5 * (5.0 * mu * mu * mu - 3.0 * mu);
+                let p4 = (35.0 * mu.powi(4) - 30.0 * mu * mu + 3.0) / 8.0;
+                for (l, p) in [1.0, mu, p2, p3, p4].into_iter().enumerate() {
+                    q[l] += w * p;
+                }
+            }
+            assert!((q[0] - 1.0).abs() < 1e-3, "{g1} {g2} {weight}: {}", q[0]);
+            assert!((k[0] - 1.0).abs() < 1e-15);
+            for l in 1..5 {
+                assert!((k[l] - q[l]).abs() < 1e-3, "l {l}: {} vs {}", k[l], q[l]);
+            }
+        }
+    }
+
+    #[test]
+    fn double_henyey_greenstein_sampling_matches_its_density() {
+        // The sampled fractions with μ > 0.9 and μ < −0.5 against the
+        // integrals of the density, each within 4 standard errors.
+        let phase = PhaseFunction::DoubleHenyeyGreenstein {
+            g1: 0.8,
+            g2: -0.4,
+            weight: 0.85,
+        };
+        let mut rng = crate::rng::Rng::new(7, 8);
+        let n = 200_000;
+        let samples: Vec<f64> = (0..n).map(|_| phase.sample(|| rng.uniform())).collect();
+        for (lo, hi) in [(0.9, 1.0), (-1.0, -0.5)] {
+            let hits =
+                samples.iter().filter(|&&mu| mu > lo && mu <= hi).count() as f64 / f64::from(n);
+            let m = 20_000;
+            let expected: f64 = (0..m)
+                .map(|i| {
+                    let mu = lo + (hi - lo) * (f64::from(i) + 0.5) / f64::from(m);
+                    2.0 * PI * phase.eval(mu) * (hi - lo) / f64::from(m)
+                })
+                .sum();
+            let se = (expected * (1.0 - expected) / f64::from(n)).sqrt();
+            assert!(
+                (hits - expected).abs() < 4.0 * se,
+                "{lo}..{hi}: {hits} vs {expected}"
+            );
+        }
+        let mean = samples.iter().sum::<f64>() / f64::from(n);
+        let g = phase.mean_cosine();
+        assert!((g - (0.85 * 0.8 - 0.15 * 0.4)).abs() < 1e-12);
+        assert!((mean - g).abs() < 0.01, "{mean} vs {g}");
     }
 
     #[test]

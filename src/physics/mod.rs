@@ -6,6 +6,7 @@
 
 pub mod aerosol;
 pub mod ozone;
+pub mod phase_table;
 pub mod quadrature;
 pub mod rayleigh;
 pub mod solar_position;

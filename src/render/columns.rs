@@ -77,11 +77,12 @@ const BOUND_MARGIN: f64 = 1.5;
 const MAX_EXPECTED_EVENTS: f64 = 2.0;
 /// Longest piece of a ray in the slant columns' quadrature, m.
 const SLANT_PIECE_M: f64 = 10_000.0;
-/// Number of profiles: air (m⁻³), aerosol extinction at 340 nm (m⁻¹),
-/// ozone (m⁻³) — the order of [`SpectralLanes::control`].
+/// Number of profiles: air (m⁻³), aerosol extinction at the reference
+/// wavelength (m⁻¹), ozone (m⁻³) — the order of [`SpectralLanes::control`].
 const PROFILES: usize = 3;
 
-/// One value per profile: air (m⁻³), aerosol extinction at 340 nm (m⁻¹), ozone (m⁻³).
+/// One value per profile: air (m⁻³), aerosol extinction at the reference
+/// wavelength (m⁻¹), ozone (m⁻³).
 pub type Profiles = [f64; PROFILES];
 /// Entries of a table node: per profile g, then its slopes in node units
 /// along the cosine nodes, along the altitude nodes, and across both.

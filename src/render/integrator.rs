@@ -369,12 +369,30 @@ pub const CONTROL_AEROSOL_G: (f64, f64) = (-0.5, 0.8);
 /// Whether the control variate's table holds the once-scattered light well
 /// enough in `atmosphere`'s haze to pay for itself: an aerosol column no
 /// deeper than [`CONTROL_MAX_AEROSOL_DEPTH`] at 550 nm, and g within
-/// [`CONTROL_AEROSOL_G`] (or no aerosols).
+/// [`CONTROL_AEROSOL_G`] (or no aerosols; g as [`control_aerosol_g`]
+/// takes it: the measurements above are in Henyey–Greenstein's g, and for
+/// a double Henyey–Greenstein or a table the mean cosine measures the
+/// forward peak whose share beyond the expansion's degree is at stake).
+/// Either way the estimate stays unbiased (the phase function's Legendre
+/// moments are exact, `PhaseFunction::legendre_moments`): only the noise
+/// is.
 pub fn control_table_holds(atmosphere: &AtmosphereParams) -> bool {
     let depth = atmosphere.aerosol_optical_depth(550.0);
     depth == 0.0
         || (depth <= CONTROL_MAX_AEROSOL_DEPTH
-            && (CONTROL_AEROSOL_G.0..=CONTROL_AEROSOL_G.1).contains(&atmosphere.aerosol_g))
+            && (CONTROL_AEROSOL_G.0..=CONTROL_AEROSOL_G.1).contains(&control_aerosol_g(atmosphere)))
+}
+
+/// The g that [`control_table_holds`] compares with [`CONTROL_AEROSOL_G`]:
+/// Henyey–Greenstein's and Cornette–Shanks' parameter, the other phase
+/// functions' mean cosine (NaN where the phase function cannot be built).
+pub fn control_aerosol_g(atmosphere: &AtmosphereParams) -> f64 {
+    use crate::physics::aerosol::PhaseFunction;
+    match atmosphere.aerosol_phase_function() {
+        Ok(PhaseFunction::HenyeyGreenstein { g } | PhaseFunction::CornetteShanks { g }) => g,
+        Ok(phase) => phase.mean_cosine(),
+        Err(_) => f64::NAN,
+    }
 }
 
 /// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
@@ -695,7 +713,7 @@ impl<'a> Integrator<'a> {
             guide: None,
             control: None,
             splatting: false,
-            aerosol_moments: medium.aerosol_phase.legendre_moments(medium.aerosol_g),
+            aerosol_moments: medium.aerosol_phase.legendre_moments(),
         }
     }
 
@@ -878,7 +896,7 @@ impl<'a> Integrator<'a> {
         j: usize,
         mu: f64,
     ) -> f64 {
-        let aerosol = self.medium.aerosol_phase.eval(mu, self.medium.aerosol_g);
+        let aerosol = self.medium.aerosol_phase.eval(mu);
         lane_scattering_phase(c, lanes, j, mu, aerosol)
     }
 
@@ -890,7 +908,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         mu: f64,
     ) -> Lanes {
-        let aerosol = self.medium.aerosol_phase.eval(mu, self.medium.aerosol_g);
+        let aerosol = self.medium.aerosol_phase.eval(mu);
         std::array::from_fn(|j| {
             if j < lanes.active {
                 lane_scattering_phase(c, lanes, j, mu, aerosol)
@@ -1340,10 +1358,7 @@ impl<'a> Integrator<'a> {
         let mu_sun = dir.dot(self.sun_direction);
         let phase_rayleigh: Lanes =
             std::array::from_fn(|j| rayleigh::phase(mu_sun, lanes.rayleigh_gamma[j]));
-        let phase_aerosol = self
-            .medium
-            .aerosol_phase
-            .eval(mu_sun, self.medium.aerosol_g);
+        let phase_aerosol = self.medium.aerosol_phase.eval(mu_sun);
         let distribution = InScatterDistribution::new(
             self.medium,
             Some(self.medium.sun_columns()),
@@ -1993,9 +2008,7 @@ impl<'a> Integrator<'a> {
         let mu = if rng.uniform() * c.scattering(k) < c.rayleigh[k] {
             rayleigh::sample_mu(rng.uniform(), lanes.rayleigh_gamma[k])
         } else {
-            self.medium
-                .aerosol_phase
-                .sample(self.medium.aerosol_g, || rng.uniform())
+            self.medium.aerosol_phase.sample(|| rng.uniform())
         };
         let (sin_phi, cos_phi) = sin_cos_turns(rng.uniform());
         let sin = (1.0 - mu * mu).max(0.0).sqrt();

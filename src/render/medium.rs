@@ -30,7 +30,7 @@ use super::columns::{ColumnTable, FixedStart};
 fn takes_table(estimator: TransmittanceEstimator, bounds: Bounds) -> bool {
     (estimator, bounds) == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight)
 }
-use crate::atmosphere::Atmosphere;
+use crate::atmosphere::{AerosolSpectrum, AlbedoSpectrum, Atmosphere};
 use crate::physics::{aerosol, ozone, rayleigh, standard_atmosphere, sun};
 use crate::rng::Rng;
 
@@ -85,8 +85,8 @@ struct ShellBounds {
 /// profiles stray from them.
 #[derive(Clone, Copy, Debug, Default)]
 struct Chord {
-    /// Air (m⁻³), aerosol extinction at 340 nm (m⁻¹) and ozone (m⁻³) at the
-    /// shell's lower boundary.
+    /// Air (m⁻³), aerosol extinction at the reference wavelength (m⁻¹) and
+    /// ozone (m⁻³) at the shell's lower boundary.
     lower: [f64; 3],
     /// Their change per m² of r².
     slope: [f64; 3],
@@ -120,8 +120,10 @@ impl Chord {
 struct Node {
     air_m3: f64,
     ozone_m3: f64,
-    /// Aerosol extinction at 340 nm (× amount), m⁻¹.
-    aerosol_340_per_m: f64,
+    /// Aerosol extinction at the reference wavelength, m⁻¹
+    /// ([`Atmosphere::aerosol_reference_extinction_per_m`]: 340 nm × the
+    /// amount for Elterman's spectrum, else 550 nm).
+    aerosol_reference_per_m: f64,
     temperature_k: f64,
 }
 
@@ -136,9 +138,13 @@ pub struct Medium {
     /// spanning the whole atmosphere (the "global majorant" variant).
     shell_terms: ShellTerms,
     pub ground_albedo: f64,
-    pub aerosol_g: f64,
-    pub aerosol_albedo: f64,
-    pub aerosol_phase: aerosol::PhaseModel,
+    /// The aerosol's single-scattering albedo.
+    aerosol_albedo: AlbedoSpectrum,
+    /// The aerosol's phase function.
+    pub aerosol_phase: aerosol::PhaseFunction,
+    /// The aerosol extinction's wavelength dependence, relative to the
+    /// reference wavelength of the nodes' aerosol profile.
+    aerosol_spectrum: AerosolSpectrum,
     ozone_on: bool,
     /// Column amounts toward the sun (a sampling aid; built on first use, so
     /// renders that do not sample sunlight do not pay for it).
@@ -192,8 +198,8 @@ struct ShellExtinction {
 /// `BENCHMARKS.md`).
 #[derive(Clone, Debug)]
 struct ShellTerms {
-    /// Largest air (m⁻³), ozone (m⁻³) and aerosol extinction at 340 nm
-    /// (m⁻¹) in the shell.
+    /// Largest air (m⁻³), ozone (m⁻³) and aerosol extinction at the
+    /// reference wavelength (m⁻¹) in the shell.
     air_max: [f64; SHELL_SLOTS],
     ozone_max: [f64; SHELL_SLOTS],
     aerosol_max: [f64; SHELL_SLOTS],
@@ -267,8 +273,10 @@ pub struct SpectralLanes {
     ozone_m2: [[f64; 11]; LANES],
     ozone_max_m2: Lanes,
     ozone_min_m2: Lanes,
-    /// Aerosol extinction relative to 340 nm.
+    /// Aerosol extinction relative to the reference wavelength (see [`Node`]).
     aerosol_factor: Lanes,
+    /// Aerosol single-scattering albedo.
+    aerosol_albedo: Lanes,
     /// Top-of-atmosphere spectral irradiance, W m⁻² nm⁻¹ (or 1 for a unit sun).
     pub sun_irradiance: Lanes,
     /// Majorants and residual bounds per slot of [`ShellTerms`] for these
@@ -279,9 +287,11 @@ pub struct SpectralLanes {
 
 /// The per-wavelength constants of one lane, in the order of
 /// [`LaneTable`]'s rows: Rayleigh cross-section (m²), Rayleigh phase γ,
-/// aerosol factor, solar irradiance, then the ozone cross-section (m²) at the
-/// 11 tabulated temperatures.
-type LaneConstants = [f64; 4 + 11];
+/// aerosol factor, solar irradiance, aerosol single-scattering albedo, then
+/// the ozone cross-section (m²) at the 11 tabulated temperatures.
+type LaneConstants = [f64; OZONE_CONSTANTS + 11];
+/// Index of the first ozone cross-section in [`LaneConstants`].
+const OZONE_CONSTANTS: usize = 5;
 
 /// The solar spectral irradiance at the top of the atmosphere that the
 /// lanes carry.
@@ -331,13 +341,15 @@ impl SolarSource {
 }
 
 fn lane_constants(wavelength_nm: f64, medium: &Medium, source: SolarSource) -> LaneConstants {
-    let mut c = [0.0; 15];
+    let mut c = [0.0; OZONE_CONSTANTS + 11];
     c[0] = rayleigh::cross_section_m2(wavelength_nm);
     c[1] = rayleigh::phase_gamma(wavelength_nm);
-    c[2] = aerosol::SpectralFactor::get().at(wavelength_nm);
+    c[2] = medium.aerosol_spectrum.factor(wavelength_nm);
     c[3] = source.irradiance_w_m2_nm(wavelength_nm);
+    c[4] = medium.aerosol_albedo.at(wavelength_nm);
     if medium.ozone_on {
-        c[4..].copy_from_slice(&ozone::CrossSections::get().at_wavelength(wavelength_nm));
+        c[OZONE_CONSTANTS..]
+            .copy_from_slice(&ozone::CrossSections::get().at_wavelength(wavelength_nm));
     }
     c
 }
@@ -436,6 +448,7 @@ impl SpectralLanes {
             ozone_min_m2: [0.0; LANES],
             ozone_m2: [[0.0; 11]; LANES],
             aerosol_factor: [0.0; LANES],
+            aerosol_albedo: [0.0; LANES],
             sun_irradiance: [0.0; LANES],
         };
         for (j, c) in constants.iter().enumerate() {
@@ -443,9 +456,11 @@ impl SpectralLanes {
             lanes.rayleigh_gamma[j] = c[1];
             lanes.aerosol_factor[j] = c[2];
             lanes.sun_irradiance[j] = c[3];
-            lanes.ozone_m2[j].copy_from_slice(&c[4..]);
-            lanes.ozone_max_m2[j] = c[4..].iter().copied().fold(0.0, f64::max);
-            lanes.ozone_min_m2[j] = c[4..].iter().copied().fold(f64::INFINITY, f64::min);
+            lanes.aerosol_albedo[j] = c[4];
+            let ozone = &c[OZONE_CONSTANTS..];
+            lanes.ozone_m2[j].copy_from_slice(ozone);
+            lanes.ozone_max_m2[j] = ozone.iter().copied().fold(0.0, f64::max);
+            lanes.ozone_min_m2[j] = ozone.iter().copied().fold(f64::INFINITY, f64::min);
         }
         let constants: [[f64; 4]; LANES] = std::array::from_fn(|j| {
             let j = if j < active { j } else { 0 };
@@ -461,9 +476,10 @@ impl SpectralLanes {
     }
 
     /// The control extinction of residual ratio tracking, m⁻¹, per lane,
-    /// from the chords' densities (air, aerosol at 340 nm, ozone): Rayleigh
-    /// and aerosol as in [`Medium::coefficients`], ozone with the middle of
-    /// the lane's cross-section range over temperature.
+    /// from the chords' densities (air, aerosol at the reference
+    /// wavelength, ozone): Rayleigh and aerosol as in
+    /// [`Medium::coefficients`], ozone with the middle of the lane's
+    /// cross-section range over temperature.
     pub(super) fn control(&self, densities: [f64; 3]) -> Lanes {
         std::array::from_fn(|j| {
             self.rayleigh_m2[j] * densities[0]
@@ -473,8 +489,8 @@ impl SpectralLanes {
     }
 
     /// Bound on |extinction − control| over the active lanes where the
-    /// profiles (air, aerosol at 340 nm, ozone) lie within `deviations` of
-    /// the densities the control was given, and ozone stays below
+    /// profiles (air, aerosol at the reference wavelength, ozone) lie within
+    /// `deviations` of the densities the control was given, and ozone stays below
     /// `ozone_max_m3` (its cross-section's spread over temperature about the
     /// control's mid value), m⁻¹.
     pub(super) fn residual_bound(&self, deviations: [f64; 3], ozone_max_m3: f64) -> f64 {
@@ -495,7 +511,7 @@ impl SpectralLanes {
         self.ozone_m2[j][3]
     }
 
-    /// Aerosol extinction of lane `j` relative to 340 nm.
+    /// Aerosol extinction of lane `j` relative to the reference wavelength.
     pub fn aerosol_extinction_factor(&self, j: usize) -> f64 {
         self.aerosol_factor[j]
     }
@@ -536,7 +552,7 @@ fn node_at(nodes: &[Node], z_m: f64) -> Node {
     Node {
         air_m3: lerp(|n| n.air_m3),
         ozone_m3: lerp(|n| n.ozone_m3),
-        aerosol_340_per_m: lerp(|n| n.aerosol_340_per_m),
+        aerosol_reference_per_m: lerp(|n| n.aerosol_reference_per_m),
         temperature_k: lerp(|n| n.temperature_k),
     }
 }
@@ -552,7 +568,7 @@ impl Medium {
                 Node {
                     air_m3: atmosphere.air_number_density_m3(z),
                     ozone_m3: atmosphere.ozone_number_density_m3(z),
-                    aerosol_340_per_m: atmosphere.aerosol_extinction_340nm_per_m(z),
+                    aerosol_reference_per_m: atmosphere.aerosol_reference_extinction_per_m(z),
                     temperature_k: standard_atmosphere::air_state(z).temperature_k,
                 }
             })
@@ -569,7 +585,7 @@ impl Medium {
             let radius2 = |z: f64| (p.planet_radius_m + z).powi(2);
             let (lower2, upper2) = (radius2(lo_m), radius2(hi_m));
             let profiles: [fn(&Node) -> f64; 3] =
-                [|n| n.air_m3, |n| n.aerosol_340_per_m, |n| n.ozone_m3];
+                [|n| n.air_m3, |n| n.aerosol_reference_per_m, |n| n.ozone_m3];
             let mut chord = Chord {
                 lower: profiles.map(|f| f(&lower)),
                 slope: profiles.map(|f| (f(&upper) - f(&lower)) / (upper2 - lower2)),
@@ -602,7 +618,7 @@ impl Medium {
             ShellBounds {
                 air_max: max(|n| n.air_m3),
                 ozone_max: max(|n| n.ozone_m3),
-                aerosol_max: max(|n| n.aerosol_340_per_m),
+                aerosol_max: max(|n| n.aerosol_reference_per_m),
                 chord,
             }
         };
@@ -614,7 +630,7 @@ impl Medium {
         let shell_terms = ShellTerms::new(&shells, &bounds_between(0.0, top_m));
         let profile_nodes = nodes
             .iter()
-            .map(|n| [n.air_m3, n.aerosol_340_per_m, n.ozone_m3])
+            .map(|n| [n.air_m3, n.aerosol_reference_per_m, n.ozone_m3])
             .collect();
         Self {
             planet_radius_m: p.planet_radius_m,
@@ -624,9 +640,11 @@ impl Medium {
             shells,
             nodes,
             ground_albedo: p.ground_albedo,
-            aerosol_g: p.aerosol_g,
-            aerosol_albedo: p.aerosol_albedo,
-            aerosol_phase: p.aerosol_phase,
+            aerosol_albedo: p.aerosol_albedo_spectrum(),
+            aerosol_phase: p
+                .aerosol_phase_function()
+                .expect("a validated scene's phase function (Scene::validate builds it)"),
+            aerosol_spectrum: p.aerosol_column().spectrum,
             ozone_on: p.ozone,
             sun_columns: std::sync::OnceLock::new(),
             column_table: std::sync::OnceLock::new(),
@@ -657,23 +675,25 @@ impl Medium {
         let (a, b) = (&self.nodes[i], &self.nodes[i + 1]);
         let air = a.air_m3 + f * (b.air_m3 - a.air_m3);
         let o3 = a.ozone_m3 + f * (b.ozone_m3 - a.ozone_m3);
-        let aer = a.aerosol_340_per_m + f * (b.aerosol_340_per_m - a.aerosol_340_per_m);
+        let aer =
+            a.aerosol_reference_per_m + f * (b.aerosol_reference_per_m - a.aerosol_reference_per_m);
         let mut c = Coefficients::default();
         let (k, w) =
             ozone::temperature_weight(a.temperature_k + f * (b.temperature_k - a.temperature_k));
         for j in 0..LANES {
             c.rayleigh[j] = lanes.rayleigh_m2[j] * air;
             let ext = aer * lanes.aerosol_factor[j];
-            c.aerosol_scattering[j] = ext * self.aerosol_albedo;
+            c.aerosol_scattering[j] = ext * lanes.aerosol_albedo[j];
             let o3_xs =
                 lanes.ozone_m2[j][k] + w * (lanes.ozone_m2[j][k + 1] - lanes.ozone_m2[j][k]);
-            c.absorption[j] = ext * (1.0 - self.aerosol_albedo) + o3 * o3_xs;
+            c.absorption[j] = ext * (1.0 - lanes.aerosol_albedo[j]) + o3 * o3_xs;
         }
         c
     }
 
     /// Air and ozone number densities (m⁻³) and the aerosol extinction at
-    /// 340 nm (× amount, m⁻¹) at distance `radius_m` from the planet's centre.
+    /// the reference wavelength (m⁻¹, as the nodes hold it) at distance `radius_m`
+    /// from the planet's centre.
     pub fn densities(&self, radius_m: f64) -> [f64; 3] {
         let x = ((radius_m - self.planet_radius_m) / NODE_STEP_M).max(0.0);
         let i = (x as usize).min(self.nodes.len() - 2);
@@ -682,7 +702,7 @@ impl Medium {
         [
             a.air_m3 + f * (b.air_m3 - a.air_m3),
             a.ozone_m3 + f * (b.ozone_m3 - a.ozone_m3),
-            a.aerosol_340_per_m + f * (b.aerosol_340_per_m - a.aerosol_340_per_m),
+            a.aerosol_reference_per_m + f * (b.aerosol_reference_per_m - a.aerosol_reference_per_m),
         ]
     }
 

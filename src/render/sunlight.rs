@@ -46,8 +46,9 @@ const ALTITUDE_NODES: usize = 64;
 const ZENITH_NODES: usize = 64;
 
 /// Column amounts toward the sun: air molecules (m⁻²), ozone molecules (m⁻²)
-/// and aerosol optical depth at 340 nm (× amount), from a point at a given
-/// altitude for a given solar zenith angle, without refraction.
+/// and aerosol optical depth at the reference wavelength (`medium::Node`),
+/// from a point at a given altitude for a given solar zenith angle, without
+/// refraction.
 pub struct SunColumns {
     top_m: f64,
     planet_radius_m: f64,
@@ -556,7 +557,7 @@ impl DensityBuilder {
         let phase_rayleigh: Lanes = std::array::from_fn(|j| {
             crate::physics::rayleigh::phase(mu_sun, self.lanes.rayleigh_gamma[j])
         });
-        let phase_aerosol = medium.aerosol_phase.eval(mu_sun, medium.aerosol_g);
+        let phase_aerosol = medium.aerosol_phase.eval(mu_sun);
         InScatterDistribution::new(
             medium,
             Some(medium.sun_columns()),
