@@ -14,6 +14,8 @@ use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use super::io::{self, ExportJob};
+use super::panels::spectrum::{probe_wavelengths_nm, SpectrumPanel};
+pub use super::panels::spectrum::{SpectrumProbe, DEFAULT_PROBE_SAMPLES, SPECTRUM_TITLE};
 use super::panels::{
     AtmospherePanel, CameraPanel, Dialog, DisplayPanel, ExportPanel, ObserverPanel, PresetsPanel,
     RenderPanel, Request, StatusBar, SunPanel,
@@ -47,18 +49,6 @@ const RENDER_POLL: Duration = Duration::from_millis(15);
 const REFINE_POLL_MAX: Duration = Duration::from_millis(100);
 /// How often the UI refreshes while an export or a file task runs.
 const TASK_POLL: Duration = Duration::from_millis(100);
-/// The spectrum probe's wavelengths: 360–830 nm (the visible range of the
-/// CIE colour-matching functions) every 10 nm.
-const PROBE_FIRST_NM: f64 = 360.0;
-const PROBE_LAST_NM: f64 = 830.0;
-const PROBE_STEP_NM: f64 = 10.0;
-/// Monte Carlo samples per wavelength of the spectrum probe by default: a
-/// standard error of about 0.5% at 550 nm, 45° up at midday, in about a
-/// quarter of a second on 2 cores.
-pub const DEFAULT_PROBE_SAMPLES: u32 = 2000;
-/// Title of the spectrum panel (followed by the direction).
-pub const SPECTRUM_TITLE: &str = "Spectrum";
-
 /// Results that background threads send to the UI.
 enum TaskResult {
     /// A dialog closed with this path (`None`: cancelled).
@@ -69,21 +59,6 @@ enum TaskResult {
     Saved(&'static str, PathBuf, Result<(), String>),
     /// The spectrum probe number `.0` finished.
     Spectrum(u64, Result<Vec<SpectralEstimate>, String>),
-}
-
-/// The spectral radiance of one direction, asked for by a click on the view.
-#[derive(Clone, Debug)]
-pub struct SpectrumProbe {
-    /// Degrees clockwise from north.
-    pub azimuth_deg: f64,
-    /// Degrees above the horizon.
-    pub elevation_deg: f64,
-    /// The scene it was computed for (it is stale once the scene differs).
-    scene: Scene,
-    /// Which probe this is (a later click's result replaces an earlier one's).
-    id: u64,
-    /// `None` while it is computed.
-    pub result: Option<Result<Vec<SpectralEstimate>, String>>,
 }
 
 /// `--screenshot`: save the window after a delay and close it.
@@ -224,10 +199,7 @@ impl SkyApp {
         });
         let samples = self.probe_samples;
         self.spawn_task(move || {
-            let count = ((PROBE_LAST_NM - PROBE_FIRST_NM) / PROBE_STEP_NM).round() as usize + 1;
-            let wavelengths: Vec<f64> = (0..count)
-                .map(|i| PROBE_FIRST_NM + PROBE_STEP_NM * i as f64)
-                .collect();
+            let wavelengths = probe_wavelengths_nm();
             let result = Renderer::new(&scene)
                 .map(|r| r.probe_radiance(90.0 - elevation_deg, azimuth_deg, &wavelengths, samples))
                 .map_err(|e| e.to_string());
@@ -826,7 +798,7 @@ impl SkyApp {
                 .default_size(360.0)
                 .show(ui, |ui| {
                     if let Some(probe) = &self.spectrum {
-                        close = spectrum_panel(ui, probe, stale);
+                        close = SpectrumPanel { probe, stale }.ui(ui);
                     }
                 });
             if close {
@@ -874,73 +846,6 @@ impl SkyApp {
         RenderPanel { state }.ui(ui);
         request
     }
-}
-
-/// The spectrum panel: the direction in the title, the radiance with its
-/// ±1 standard error band; whether the user closed it.
-fn spectrum_panel(ui: &mut egui::Ui, probe: &SpectrumProbe, stale: bool) -> bool {
-    let mut close = false;
-    ui.horizontal(|ui| {
-        ui.heading(format!(
-            "{SPECTRUM_TITLE} at azimuth {:.1}°, elevation {:.1}°",
-            probe.azimuth_deg, probe.elevation_deg
-        ));
-        close = ui
-            .button("Close")
-            .on_hover_text("Hide the spectrum")
-            .clicked();
-    });
-    if stale {
-        ui.colored_label(
-            super::panels::ERROR_COLOUR,
-            "stale: the scene changed since; click the view again",
-        );
-    }
-    let estimates = match &probe.result {
-        None => {
-            ui.horizontal(|ui| {
-                ui.spinner();
-                ui.label("computing the spectrum…");
-            });
-            return close;
-        }
-        Some(Err(e)) => {
-            ui.colored_label(super::panels::ERROR_COLOUR, e);
-            return close;
-        }
-        Some(Ok(estimates)) => estimates,
-    };
-    let xs: Vec<f64> = estimates.iter().map(|e| e.wavelength_nm).collect();
-    let lo: Vec<f64> = estimates.iter().map(|e| e.radiance - e.std_error).collect();
-    let hi: Vec<f64> = estimates.iter().map(|e| e.radiance + e.std_error).collect();
-    let line: Vec<[f64; 2]> = estimates
-        .iter()
-        .map(|e| [e.wavelength_nm, e.radiance])
-        .collect();
-    let discarded: u64 = estimates.iter().map(|e| e.discarded).sum();
-    let colour = ui.visuals().hyperlink_color;
-    egui_plot::Plot::new("spectrum-plot")
-        .legend(egui_plot::Legend::default())
-        .x_axis_label("wavelength (nm)")
-        .y_axis_label(if probe.scene.render.unit_sun {
-            // A unit sun (1 W m⁻² nm⁻¹ at the top of the atmosphere) makes
-            // the radiance a ratio to that irradiance.
-            "radiance per unit TOA irradiance (1/sr)"
-        } else {
-            "spectral radiance (W/(m²·sr·nm))"
-        })
-        .height((ui.available_height() - 24.0).max(120.0))
-        .show(ui, |plot| {
-            plot.add(
-                egui_plot::FilledArea::new("±1 standard error", &xs, &lo, &hi)
-                    .fill_color(colour.gamma_multiply(0.3)),
-            );
-            plot.line(egui_plot::Line::new("radiance", line).color(colour));
-        });
-    if discarded > 0 {
-        ui.label(format!("{discarded} non-finite samples counted as 0"));
-    }
-    close
 }
 
 /// The line `--screenshot` prints when it takes the screenshot: what is on

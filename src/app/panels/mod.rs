@@ -16,6 +16,7 @@ mod export;
 mod observer;
 mod presets;
 mod render;
+pub mod spectrum;
 mod status;
 mod sun;
 
