@@ -1,7 +1,8 @@
 //! The interactive preview app (egui/eframe on wgpu).
 //!
 //! * [`state`]: [`AppState`], the scene and the display/render/export
-//!   settings as a plain struct, testable without a window.
+//!   settings as a plain struct, testable without a window; the export's
+//!   own settings and progress in `export_state`.
 //! * [`sun_place`]: the Sun panel's date, time and place inputs and how
 //!   they become the scene's `sun.date_time`, latitude and longitude.
 //! * [`readout`]: what the sky view reads off the frame (a pixel's
@@ -17,6 +18,7 @@
 //! scene change restarts it (a new epoch), and the UI uploads each newly
 //! published pass as a texture.
 
+mod export_state;
 pub mod io;
 mod panels;
 pub mod readout;

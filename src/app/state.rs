@@ -7,13 +7,12 @@
 //! Setters never panic: out-of-range values are clamped and non-finite ones
 //! ignored, so any user input is safe.
 
-use std::path::PathBuf;
-use std::time::Duration;
-
 use super::sun_place::{DatePlace, SunMode};
 use crate::atmosphere::{Atmosphere, AtmosphereParams};
 use crate::export::{Timelapse, MAX_FRAMES};
 use crate::scene::{CameraKind, Scene};
+
+pub use super::export_state::*;
 
 /// Pixels in the preview at scale 1 (320 × 160 for the equirectangular view).
 pub const PREVIEW_BASE_PIXELS: f64 = 320.0 * 160.0;
@@ -37,16 +36,6 @@ pub const AEROSOL_AMOUNT_RANGE: (f64, f64) = (0.0, 10.0);
 pub const EXPOSURE_RANGE: (f32, f32) = (-25.0, 10.0);
 /// Largest target sample count of the preview.
 pub const MAX_TARGET_SPP: u32 = 1 << 16;
-/// Largest export sample count.
-pub const MAX_EXPORT_SPP: u32 = 1 << 16;
-/// Widest panorama export: 16384 × 8192, the most pixels a scene may have
-/// ([`crate::scene::MAX_PIXELS`]).
-pub const MAX_EXPORT_WIDTH: u32 = 16_384;
-/// Export panorama sizes offered (width; the height is half of it).
-pub const EXPORT_WIDTHS: [u32; 5] = [512, 1024, 2048, 4096, 8192];
-/// Longest timelapse the app offers, minutes (a week).
-pub const MAX_TIMELAPSE_MINUTES: u32 = 7 * 24 * 60;
-
 /// How linear radiance becomes display values.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum ToneCurve {
@@ -140,123 +129,6 @@ impl Default for RenderSettings {
             paused: false,
             target_spp: 1024,
         }
-    }
-}
-
-/// Size and sample count of an exported panorama.
-#[derive(Clone, Debug, PartialEq)]
-pub struct ExportSettings {
-    /// Width in pixels; the height is half of it (equirectangular, 2:1).
-    pub width: u32,
-    /// Samples per pixel.
-    pub spp: u32,
-    /// A sequence of panoramas over time instead of one.
-    pub timelapse: TimelapseSettings,
-    /// Write every compositing layer beside the image (`render --layers`).
-    pub layers: bool,
-}
-
-impl Default for ExportSettings {
-    fn default() -> Self {
-        Self {
-            width: 4096,
-            spp: 64,
-            timelapse: TimelapseSettings::default(),
-            layers: false,
-        }
-    }
-}
-
-/// A timelapse export: panoramas at evenly spaced times from the Sun
-/// panel's date and time on (offered where the Sun is placed by date).
-#[derive(Clone, Debug, PartialEq)]
-pub struct TimelapseSettings {
-    /// Export the sequence rather than one panorama.
-    pub enabled: bool,
-    /// Time from the first frame to the last, minutes.
-    pub duration_min: u32,
-    /// Frames in the sequence, first and last included.
-    pub frames: u32,
-    /// The frames' file name, a run of `#` standing for the frame number
-    /// (`sky_####.exr` → `sky_0001.exr`, …).
-    pub file_name: String,
-    /// Leave frames whose file exists alone (to resume a sequence).
-    pub skip_existing: bool,
-}
-
-impl Default for TimelapseSettings {
-    fn default() -> Self {
-        Self {
-            enabled: false,
-            duration_min: 12 * 60,
-            frames: 25,
-            file_name: "sky_####.exr".into(),
-            skip_existing: false,
-        }
-    }
-}
-
-impl ExportSettings {
-    /// Height in pixels (half the width, at least 1).
-    pub fn height(&self) -> u32 {
-        (self.width / 2).max(1)
-    }
-}
-
-/// Where a timelapse export stands in its sequence.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
-pub struct SequenceStatus {
-    /// The frame being rendered (the last one looked at once it ended), from 1.
-    pub frame: u32,
-    /// Frames in the sequence.
-    pub frames: u32,
-    /// Frames written so far.
-    pub written: u32,
-    /// Frames skipped because their file existed.
-    pub skipped: u32,
-}
-
-/// Where the HDR panorama export stands.
-#[derive(Clone, Debug, PartialEq, Default)]
-pub enum ExportStatus {
-    /// No export has been started.
-    #[default]
-    Idle,
-    /// Rendering `done` of `total` passes into `path`.
-    Running {
-        /// Target file (a timelapse: the file name pattern).
-        path: PathBuf,
-        /// Completed passes (a timelapse: of all its frames).
-        done: u32,
-        /// Passes in all (the export spp; a timelapse: times its frames).
-        total: u32,
-        /// A timelapse's frames.
-        sequence: Option<SequenceStatus>,
-    },
-    /// The file (a timelapse: every frame) was written.
-    Finished {
-        /// The file written (a timelapse: the file name pattern).
-        path: PathBuf,
-        /// Wall-clock time of the export.
-        elapsed: Duration,
-        /// A timelapse's frames.
-        sequence: Option<SequenceStatus>,
-    },
-    /// Cancelled by the user; nothing was written (a timelapse: no
-    /// partial frame; the frames finished before are kept).
-    Cancelled {
-        /// A timelapse's frames.
-        sequence: Option<SequenceStatus>,
-    },
-    /// The export failed; nothing was written (a timelapse: the frames
-    /// finished before are kept; the message says how many).
-    Failed(String),
-}
-
-impl ExportStatus {
-    /// An export is in progress.
-    pub fn is_running(&self) -> bool {
-        matches!(self, Self::Running { .. })
     }
 }
 
