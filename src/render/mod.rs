@@ -25,6 +25,7 @@ pub mod memory;
 pub mod parts;
 pub mod probe;
 pub mod service;
+pub mod splatting;
 pub mod sunlight;
 pub mod trig;
 
@@ -50,49 +51,14 @@ pub fn solar_source(scene: &Scene) -> SolarSource {
 }
 
 use crate::atmosphere::Atmosphere;
-use crate::rng::{mix64, Rng, SOBOL_POINTS};
+use crate::rng::{Rng, SOBOL_POINTS};
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
-use circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
+use circles::CircleSplatter;
 use exact::ExactSum;
 use film_layers::SampleSplit;
 use film_spectral::SampleLanes;
 use sunlight::CameraDensities;
-
-/// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
-const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
-/// Points splatted per pixel in each pass after the first ([`circles`];
-/// each with two directions and paths). At twilight, in the bench (256×128, 10 s,
-/// one path per point): 1: 7.74 %, 2: 7.07–7.82 %, 3:
-/// 6.55–7.43 % (five runs), 4: 7.19 %: with more, the camera's own
-/// samples (single scattering, the ground) get too few passes. With two
-/// paths per point, 2 and 3 give the same noise² × time (fixed passes,
-/// twilight and sunset): 2, for shorter passes.
-const SPLAT_PATHS_PER_PIXEL: u64 = 2;
-/// Points per pixel of the first splatting pass (pass 1), the only one that
-/// draws them from the prior alone ([`circles::LearnedPoints`]): half as
-/// many, so the learned density takes over sooner. Twilight, draft + 2
-/// passes, seeds 1/3/5/7: noise² × CPU time 0.91×; draft +
-/// 3 passes against draft + 3 with 2 in the first: 0.89×.
-const FIRST_SPLAT_PATHS_PER_PIXEL: u64 = 1;
-
-/// Points splatted per pixel in pass `pass` (≥ 1).
-fn splat_paths_per_pixel(pass: u32) -> u64 {
-    if pass == 1 {
-        FIRST_SPLAT_PATHS_PER_PIXEL
-    } else {
-        SPLAT_PATHS_PER_PIXEL
-    }
-}
-
-/// What one chunk of [`Renderer::splat_pass`]'s walks left: their splats,
-/// discarded splats, number, and terms of the learned density's moments.
-struct ChunkSplats {
-    splats: Vec<Splat>,
-    discarded: u64,
-    walks: u64,
-    moments: Vec<(usize, f64)>,
-}
 
 /// (√5 − 1)/2: the additive recurrence with this step is the most evenly
 /// spread 1-D sequence (Weyl; the three-distance theorem).
@@ -713,121 +679,6 @@ impl Renderer {
             discarded,
             splat_discarded,
         }
-    }
-
-    /// The splats of pass `pass` ([`circles`]): [`splat_paths_per_pixel`]
-    /// paths per pixel, in
-    /// chunks whose splats are added in the chunks' order, so the image
-    /// does not depend on the thread count. Stops between batches of chunks
-    /// once `cancelled()` returns true; the film divides by the paths
-    /// actually splatted. Returns the paths and the discarded splats.
-    fn splat_pass(
-        &self,
-        film: &mut Film,
-        pass: u32,
-        integrator: &Integrator<'_>,
-        cancelled: &(dyn Fn() -> bool + Sync),
-    ) -> (u64, u64) {
-        const CHUNK: u64 = 256;
-        // Chunks run in parallel between checks for cancellation; their
-        // number does not change the image (splats are added in order).
-        // Capped: each holds up to CHUNK × SPLATS_PER_WALK splats (512 KiB)
-        // until added.
-        let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
-        let splatter = self.circles.get_or_init(|| {
-            CircleSplatter::new(
-                &self.medium,
-                &self.integrator(1),
-                self.sky_guide.as_deref(),
-                &self.camera,
-                self.observer_m,
-            )
-        });
-        let Some(splatter) = splatter else {
-            return (0, 0);
-        };
-        let paths_total =
-            u64::from(film.width) * u64::from(film.height) * splat_paths_per_pixel(pass);
-        let chunks = paths_total.div_ceil(CHUNK);
-        let n = self.lanes_per_path();
-        let (mut paths, mut discarded) = (0, 0);
-        // The points' density is the one learned from earlier passes, fixed
-        // for this pass; this pass's walks then refine it for the next.
-        let mut learned = std::mem::take(&mut film.learned_points);
-        let mut chunk = 0;
-        while chunk < chunks && !cancelled() {
-            let end = (chunk + chunks_per_batch).min(chunks);
-            let batch: Vec<ChunkSplats> = (chunk..end)
-                .into_par_iter()
-                .map(|c| {
-                    let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
-                    let mut splats = Vec::with_capacity(CHUNK as usize * SPLATS_PER_WALK);
-                    let mut moments = Vec::with_capacity(CHUNK as usize);
-                    let mut discarded = 0;
-                    for walk in walks.clone() {
-                        // A key of their own per path (the pixels' streams
-                        // share one per sample: fine for one sample per
-                        // pixel, but paths splatted into one pixel must not
-                        // be related).
-                        let seed = self.scene.render.seed;
-                        let rng =
-                            Rng::for_sample(seed, (u64::from(pass) << 40) ^ walk, SPLAT_STREAM);
-                        // The pass's paths take the points of Sobol
-                        // sequences, one scrambled per pass and block of
-                        // SOBOL_POINTS: their wavelengths, points and first
-                        // directions are stratified across the pass.
-                        let mut rng = match integrator.options.sampler {
-                            Sampler::Sobol => rng.with_sobol_prefix(
-                                seed ^ mix64(u64::from(pass)),
-                                SPLAT_STREAM ^ (walk / SOBOL_POINTS),
-                                (walk % SOBOL_POINTS) as u32,
-                            ),
-                            Sampler::Independent => rng,
-                        };
-                        let (lanes, pdfs) = self.sample_lanes(rng.uniform());
-                        let weights = std::array::from_fn(|j| {
-                            let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
-                            bar.map(|b| K_M * b / (pdfs[j] * n as f64))
-                        });
-                        let before = splats.len();
-                        let walked = splatter.walk(
-                            integrator,
-                            &self.camera,
-                            &lanes,
-                            &weights,
-                            &learned,
-                            &mut rng,
-                            &mut splats,
-                        );
-                        // The splats' lanes over their densities, as the
-                        // XYZ weights divide (for the spectral layer).
-                        for s in &mut splats[before..] {
-                            for (v, p) in s.lanes.values.iter_mut().zip(pdfs).take(n) {
-                                *v = (f64::from(*v) / (p * n as f64)) as f32;
-                            }
-                        }
-                        discarded += walked.discarded;
-                        moments.extend(walked.moment);
-                    }
-                    ChunkSplats {
-                        splats,
-                        discarded,
-                        walks: walks.end - walks.start,
-                        moments,
-                    }
-                })
-                .collect();
-            for c in batch {
-                learned.add_moments(c.moments);
-                film.add_splats(&c.splats, c.walks);
-                paths += c.walks;
-                discarded += c.discarded;
-            }
-            chunk = end;
-        }
-        splatter.learn(&mut learned);
-        film.learned_points = learned;
-        (paths, discarded)
     }
 }
 
