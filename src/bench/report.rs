@@ -1,0 +1,184 @@
+//! `skyrender bench`'s report as Markdown tables.
+
+use super::{Report, EFFICIENCY_TARGET, FIRST_FRAME_TARGET_MS, MEMORY_TARGET_GIB};
+
+fn pct(v: f64) -> String {
+    if v.is_finite() {
+        format!("{:.2} %", v * 100.0)
+    } else {
+        "n/a".into()
+    }
+}
+
+fn secs(v: f64) -> String {
+    if !v.is_finite() {
+        "n/a".into()
+    } else if v < 100.0 {
+        format!("{v:.2} s")
+    } else {
+        format!("{v:.0} s")
+    }
+}
+
+fn num(v: f64, decimals: usize) -> String {
+    if v.is_finite() {
+        format!("{v:.decimals$}")
+    } else {
+        "n/a".into()
+    }
+}
+
+fn yes_no(ok: bool) -> &'static str {
+    if ok {
+        "yes"
+    } else {
+        "NO"
+    }
+}
+
+/// The report as Markdown tables (what `BENCHMARKS.md` records).
+pub fn format_report(report: &Report) -> String {
+    use std::fmt::Write as _;
+    let mut out = String::new();
+    let m = &report.machine;
+    // A smoke run's budgets are far below the targets': judging them would
+    // read as failures that say nothing.
+    let yes_no = |ok: bool| if report.smoke { "n/a" } else { yes_no(ok) };
+    let _ = writeln!(out, "command: {}", report.command);
+    if report.smoke {
+        let _ = writeln!(
+            out,
+            "smoke run (--quick): small budgets, targets not judged (n/a)"
+        );
+    }
+    let _ = writeln!(
+        out,
+        "machine: {} CPU(s), {}; load average before: {}, after: {}",
+        m.cpus, m.model, m.loadavg_before, m.loadavg_after
+    );
+    let _ = writeln!(
+        out,
+        "budget {} s per scene (two renders of {} s), {} thread(s)\n",
+        report.budget_s,
+        report.budget_s / 2.0,
+        report.threads
+    );
+    let _ = writeln!(
+        out,
+        "| scene | size | M paths/s | M spectral samples/s | spp A+B | noise at budget | time to 2 % | time to 1 % | target (10 s) | met | first frame | ≤ 100 ms |"
+    );
+    let _ = writeln!(
+        out,
+        "|---|---|---:|---:|---:|---:|---:|---:|---:|:-:|---:|:-:|"
+    );
+    for (r, d) in report.scenes.iter().zip(&report.details) {
+        let _ = writeln!(
+            out,
+            "| {} | {}×{} | {:.3} | {:.3} | {}+{} | {} | {} | {} | {} | {} | {:.1} ms | {} |",
+            r.scene,
+            d.width,
+            d.height,
+            r.paths_per_s / 1e6,
+            d.spectral_samples_per_s / 1e6,
+            d.run.passes[0],
+            d.run.passes[1],
+            pct(r.noise_at_budget),
+            secs(r.time_to_2pct_s),
+            secs(r.time_to_1pct_s),
+            d.noise_target.map_or_else(|| "—".into(), pct),
+            d.target_met.map_or("—", yes_no),
+            r.first_frame_ms,
+            yes_no(r.first_frame_ms <= FIRST_FRAME_TARGET_MS),
+        );
+    }
+    let _ = writeln!(out);
+    let _ = writeln!(
+        out,
+        "| scene | sky mask | sky pixels | mean sky Y (cd/m²) | render s | CPU share | discarded | first-frame set-up |"
+    );
+    let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|");
+    for d in &report.details {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {:.4e} | {:.2} | {} | {} | {:.1} ms |",
+            d.scene,
+            d.sky_mask.describe(),
+            d.run.sky_pixels,
+            d.run.mean_luminance_cd_m2,
+            d.run.seconds,
+            pct(d.run.cpu_share),
+            d.run.discarded,
+            d.first_frame_setup_ms,
+        );
+    }
+    if !report.ablation.is_empty() {
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "Ablation (same budget; noise ratio > 1: the technique helps; time ratio = ratio²; mean ratio ≈ 1: unbiased; † = one pass each overran the budget, ratio normalised to equal time by the 1/√t law)\n"
+        );
+        let _ = writeln!(
+            out,
+            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | M paths/s | CPU share | mean ratio |"
+        );
+        let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
+        for a in &report.ablation {
+            let overran = if a.seconds > 1.1 * report.budget_s {
+                " †"
+            } else {
+                ""
+            };
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {:.1}{overran} | {} | {} | {:.3} | {} | {} |",
+                a.scene,
+                a.variant,
+                pct(a.noise_at_budget),
+                a.seconds,
+                num(a.noise_ratio, 2),
+                num(a.time_ratio, 2),
+                a.paths_per_s / 1e6,
+                pct(a.cpu_share),
+                num(a.mean_ratio, 3)
+            );
+        }
+    }
+    if let Some(s) = &report.scaling {
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "Scaling ({}, 1 vs {} threads, alternated 1/N/1/N): {:.3} → {:.3} M paths/s, speedup {:.2}, efficiency {:.1} % (target ≥ 85 %: {}); CPU share {} (1 thread), {} ({} threads)",
+            s.scene,
+            s.threads,
+            s.paths_per_s_1_thread / 1e6,
+            s.paths_per_s_all / 1e6,
+            s.speedup,
+            s.efficiency * 100.0,
+            yes_no(s.efficiency >= EFFICIENCY_TARGET),
+            pct(s.cpu_share_1_thread),
+            pct(s.cpu_share_all),
+            s.threads
+        );
+    }
+    if let Some(mem) = &report.memory {
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "Memory: {}×{} equirect export at {} spp: peak RSS {:.3} GiB ({} bytes) in {:.1} s (target ≤ 1.5 GiB: {}); {}; `{}`",
+            mem.width,
+            mem.height,
+            mem.spp,
+            mem.peak_rss_gib,
+            mem.peak_rss_bytes,
+            mem.seconds,
+            yes_no(mem.peak_rss_gib <= MEMORY_TARGET_GIB),
+            mem.method,
+            mem.command
+        );
+    }
+    let _ = writeln!(out);
+    for n in &report.notes {
+        let _ = writeln!(out, "- {n}");
+    }
+    out
+}
