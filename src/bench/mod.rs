@@ -193,6 +193,18 @@ pub struct SceneResult {
     pub time_to_1pct_s: f64,
     pub first_frame_ms: f64,
     pub threads: usize,
+    /// Relative noise over the ground, and over the whole image (sun cone
+    /// excluded), at the budget.
+    pub noise_ground_at_budget: f64,
+    pub noise_whole_at_budget: f64,
+    /// Time to 1 % noise over the whole image of a 4096×2048 render,
+    /// extrapolated: noise ∝ 1/√time, time ∝ pixels.
+    pub time_to_1pct_4k_s: f64,
+    /// The largest of the neighbour and circle correlations of the noise.
+    pub noise_neighbour_correlation: f64,
+    /// RMS error of the first pass against the reference (see
+    /// [`NoiseRun::first_frame_error`]).
+    pub first_frame_error: f64,
 }
 
 /// Everything else measured per scene.
@@ -529,6 +541,19 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             time_to_1pct_s: time_to_noise(run.noise, run.seconds, 0.01),
             first_frame_ms: first_ms,
             threads,
+            noise_ground_at_budget: run.noise_ground,
+            noise_whole_at_budget: run.noise_whole,
+            time_to_1pct_4k_s: time_to_noise(run.noise_whole, run.seconds, 0.01) * 4096.0 * 2048.0
+                / f64::from(scene.render.width * scene.render.height),
+            noise_neighbour_correlation: [
+                run.row_correlation,
+                run.column_correlation,
+                run.circle_correlation,
+            ]
+            .into_iter()
+            .filter(|c| c.is_finite())
+            .fold(f64::NAN, f64::max),
+            first_frame_error: run.first_frame_error,
         });
         let wavelengths = scene.render.integrator.wavelengths_per_path;
         details.push(SceneDetail {
@@ -610,6 +635,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             "sky pixels: pixel centres above the horizon (observer inside the atmosphere) or with non-zero mean luminance (observer above it, e.g. space); pixel centres within {SUN_CONE_DEG} deg of the sun's centre excluded"
         ),
         "time_to_2pct_s / time_to_1pct_s: extrapolated from noise_at_budget and the time actually spent, assuming noise ∝ 1/sqrt(time)".into(),
+        "noise_ground_at_budget / noise_whole_at_budget: the same noise over the pixels whose centre's ray meets the ground, and over every pixel with a ray (lit, above the air), sun cone excluded; time_to_1pct_4k_s: time to 1 % over the whole image of a 4096x2048 render, extrapolated (noise ∝ 1/sqrt(time), time ∝ pixels)".into(),
+        "noise_neighbour_correlation: the largest correlation of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of one draft pass (seed + 2) minus the mean of A and B over the whole image, relative to the mean, the reference's own noise removed in quadrature".into(),
         format!(
             "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
@@ -906,14 +933,39 @@ mod tests {
                 keys,
                 [
                     "budget_s",
+                    "first_frame_error",
                     "first_frame_ms",
                     "noise_at_budget",
+                    "noise_ground_at_budget",
+                    "noise_neighbour_correlation",
+                    "noise_whole_at_budget",
                     "paths_per_s",
                     "scene",
                     "threads",
+                    "time_to_1pct_4k_s",
                     "time_to_1pct_s",
                     "time_to_2pct_s"
                 ]
+            );
+        }
+        for r in &report.scenes {
+            for noise in [r.noise_ground_at_budget, r.noise_whole_at_budget] {
+                assert!(noise > 0.0 && noise.is_finite(), "{r:?}");
+            }
+            // 256 times the pixels of the 256×128 bench image.
+            let (w, h) = (report.details[0].width, report.details[0].height);
+            let whole_1pct =
+                time_to_noise(r.noise_whole_at_budget, report.details[0].run.seconds, 0.01);
+            let scale = 4096.0 * 2048.0 / f64::from(w * h);
+            assert!(
+                (r.time_to_1pct_4k_s / (whole_1pct * scale) - 1.0).abs() < 1e-9,
+                "{r:?}"
+            );
+            assert!(r.noise_neighbour_correlation.abs() < 1.0, "{r:?}");
+            // A draft pass is far from the reference, but not absurdly.
+            assert!(
+                r.first_frame_error > 0.0 && r.first_frame_error < 1.0,
+                "{r:?}"
             );
         }
         for r in &report.scenes {

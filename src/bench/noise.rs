@@ -124,6 +124,28 @@ pub struct NoiseRun {
     pub passes: [u32; 2],
     pub sky_pixels: usize,
     pub discarded: u64,
+    /// Relative noise over the ground: the pixels whose centre's ray meets
+    /// it (sun cone excluded; NaN where none does).
+    pub noise_ground: f64,
+    pub ground_pixels: usize,
+    /// Relative noise over the whole image: every pixel with a ray (lit,
+    /// for an observer above the air), the sun's cone excluded.
+    pub noise_whole: f64,
+    pub whole_pixels: usize,
+    /// Correlation of the relative A − B differences of horizontal
+    /// neighbours, of vertical ones, and of pixels at the same angle from
+    /// the sun (on one circle of [`crate::render::circles`], neither
+    /// neighbours nor mirror partners) over the whole image: structured
+    /// noise. Mirror partners are left out of every pair (their symmetry
+    /// is by construction).
+    pub row_correlation: f64,
+    pub column_correlation: f64,
+    pub circle_correlation: f64,
+    /// RMS error of one first pass (the draft, another seed) against the
+    /// mean of A and B over the whole image, relative to its mean
+    /// luminance, with the reference's own noise (`noise_whole`) taken out
+    /// in quadrature.
+    pub first_frame_error: f64,
 }
 
 impl NoiseRun {
@@ -202,6 +224,14 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         passes: [0; 2],
         sky_pixels: 0,
         discarded: 0,
+        noise_ground: f64::NAN,
+        ground_pixels: 0,
+        noise_whole: f64::NAN,
+        whole_pixels: 0,
+        row_correlation: f64::NAN,
+        column_correlation: f64::NAN,
+        circle_correlation: f64::NAN,
+        first_frame_error: f64::NAN,
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
@@ -219,9 +249,13 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         run.passes[k] = r.passes;
         run.discarded += r.film.discarded;
         images.push(luminance(&r.film));
-        geometry = Some((renderer.camera().clone(), renderer.sun_direction()));
+        geometry = Some((
+            renderer.camera().clone(),
+            renderer.sun_direction(),
+            renderer.centre_ground(),
+        ));
     }
-    let (camera, sun) = geometry.expect("two renders");
+    let (camera, sun, ground) = geometry.expect("two renders");
     run.cpu_share = cpu_seconds / (run.seconds * rayon::current_num_threads() as f64);
     let mean: Vec<f64> = images[0]
         .iter()
@@ -245,5 +279,191 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         .sum::<f64>()
         / run.sky_pixels.max(1) as f64;
     run.noise = relative_noise(&images[0], &images[1], &mask);
+    let (w, h) = (scene.render.width, scene.render.height);
+    let whole = whole_mask(&camera, w, h, sun, SkyMask::for_scene(scene), &mean);
+    let ground: Vec<bool> = ground.iter().zip(&whole).map(|(&g, &m)| g && m).collect();
+    (run.whole_pixels, run.ground_pixels) = (count(&whole), count(&ground));
+    run.noise_whole = relative_noise(&images[0], &images[1], &whole);
+    run.noise_ground = relative_noise(&images[0], &images[1], &ground);
+    let partner = crate::render::mirror_pairs(scene)
+        .map(|m| move |x: u32, y: u32| m.partner(x as usize, y as usize, w as usize, h as usize));
+    let partner = partner.as_ref().map(|p| p as &dyn Fn(u32, u32) -> usize);
+    let c = correlations(&images, &whole, (w, h), &camera, sun, partner);
+    (
+        run.row_correlation,
+        run.column_correlation,
+        run.circle_correlation,
+    ) = c;
+    // The first pass of a third, independent render against the mean.
+    let third = second
+        .checked_add(1)
+        .ok_or_else(|| format!("seed {seed}: the first pass's seed (seed + 2) overflows"))?;
+    let mut s = scene.clone();
+    s.render.seed = third;
+    let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
+    let mut film = renderer.new_film();
+    renderer.render_pass(&mut film, 0, &|| false);
+    let first = luminance(&film);
+    let error = relative_noise(&first, &mean, &whole) * 2.0;
+    run.first_frame_error = (error * error - run.noise_whole * run.noise_whole)
+        .max(0.0)
+        .sqrt();
     Ok(run)
+}
+
+fn count(mask: &[bool]) -> usize {
+    mask.iter().filter(|&&m| m).count()
+}
+
+/// Every pixel with a ray (with non-zero mean luminance for an observer
+/// above the air, [`SkyMask::Lit`]), those within [`SUN_CONE_DEG`] of the
+/// sun left out.
+pub fn whole_mask(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    sun: DVec3,
+    kind: SkyMask,
+    mean_y: &[f64],
+) -> Vec<bool> {
+    let cos_cone = SUN_CONE_DEG.to_radians().cos();
+    (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .enumerate()
+        .map(|(i, (x, y))| {
+            camera
+                .direction(f64::from(x) + 0.5, f64::from(y) + 0.5)
+                .is_some_and(|dir| {
+                    dir.normalize().dot(sun) < cos_cone
+                        && (kind == SkyMask::AboveHorizon || mean_y[i] > 0.0)
+                })
+        })
+        .collect()
+}
+
+/// (rows, columns, circles): the correlations of u = (A − B)/(A + B)
+/// between horizontal neighbours, vertical neighbours and pixels at the
+/// same angle from `sun` (binned by the image's pixel height in angle,
+/// each paired with the next of its bin that is neither a neighbour nor
+/// its mirror partner), over `mask`; pairs of mirror partners are left
+/// out. r = Σ uᵢuⱼ / √(Σ uᵢ² Σ uⱼ²): 0 for independent noise.
+pub fn correlations(
+    images: &[Vec<f64>],
+    mask: &[bool],
+    (width, height): (u32, u32),
+    camera: &Camera,
+    sun: DVec3,
+    partner: Option<&dyn Fn(u32, u32) -> usize>,
+) -> (f64, f64, f64) {
+    let (w, h) = (width as usize, height as usize);
+    let u: Vec<Option<f64>> = (0..w * h)
+        .map(|i| {
+            let (a, b) = (images[0][i], images[1][i]);
+            (mask[i] && a + b > 0.0).then(|| (a - b) / (a + b))
+        })
+        .collect();
+    let partner_of = |i: usize| partner.map(|p| p((i % w) as u32, (i / w) as u32));
+    let correlation = |pairs: &mut dyn Iterator<Item = (usize, usize)>| {
+        let (mut uv, mut uu, mut vv) = (0.0, 0.0, 0.0);
+        for (i, j) in pairs {
+            if partner_of(i) == Some(j) {
+                continue;
+            }
+            if let (Some(a), Some(b)) = (u[i], u[j]) {
+                uv += a * b;
+                uu += a * a;
+                vv += b * b;
+            }
+        }
+        if uu > 0.0 && vv > 0.0 {
+            uv / (uu * vv).sqrt()
+        } else {
+            f64::NAN
+        }
+    };
+    let rows = correlation(&mut (0..w * h).filter(|i| i % w + 1 < w).map(|i| (i, i + 1)));
+    let columns = correlation(&mut (0..w * h.saturating_sub(1)).map(|i| (i, i + w)));
+    // Bins of angle from the sun, one pixel height wide.
+    let bin_rad = std::f64::consts::PI / h.max(1) as f64;
+    let mut bins = std::collections::BTreeMap::<u64, Vec<usize>>::new();
+    for (i, _) in u.iter().enumerate().filter(|(_, v)| v.is_some()) {
+        let (x, y) = ((i % w) as f64 + 0.5, (i / w) as f64 + 0.5);
+        if let Some(dir) = camera.direction(x, y) {
+            let theta = dir.normalize().dot(sun).clamp(-1.0, 1.0).acos();
+            bins.entry((theta / bin_rad) as u64).or_default().push(i);
+        }
+    }
+    let near = |i: usize, j: usize| {
+        let (dx, dy) = ((i % w).abs_diff(j % w), (i / w).abs_diff(j / w));
+        dx <= 1 && dy <= 1
+    };
+    let mut pairs = Vec::new();
+    for pixels in bins.values() {
+        for (k, &i) in pixels.iter().enumerate() {
+            if let Some(&j) = pixels[k + 1..]
+                .iter()
+                .find(|&&j| !near(i, j) && partner_of(i) != Some(j))
+            {
+                pairs.push((i, j));
+            }
+        }
+    }
+    let circles = correlation(&mut pairs.into_iter());
+    (rows, columns, circles)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::scene::CameraKind;
+
+    /// A deterministic pseudo-random value in (−1, 1) per index.
+    fn noise(i: usize) -> f64 {
+        let mut z = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0x5eed;
+        z = (z ^ (z >> 31)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+        z = (z ^ (z >> 29)).wrapping_mul(0x94d0_49bb_1331_11eb);
+        2.0 * ((z >> 11) as f64 / (1u64 << 53) as f64) - 1.0
+    }
+
+    #[test]
+    fn correlations_find_structure_and_not_white_noise() {
+        let mut scene = Scene::preset("sunset").unwrap();
+        scene.camera.kind = CameraKind::Equirect;
+        scene.render.width = 128;
+        scene.render.height = 64;
+        let renderer = Renderer::new(&scene).unwrap();
+        let (camera, sun) = (renderer.camera().clone(), renderer.sun_direction());
+        let (w, h) = (128usize, 64usize);
+        let mask = vec![true; w * h];
+        let pair = |e: &dyn Fn(usize) -> f64| -> Vec<Vec<f64>> {
+            vec![
+                (0..w * h).map(|i| 1.0 + 0.1 * e(i)).collect(),
+                (0..w * h).map(|i| 1.0 - 0.1 * e(i)).collect(),
+            ]
+        };
+        // White noise: every correlation within a few 1/√pairs of 0.
+        let white = pair(&noise);
+        let (r, c, k) = correlations(&white, &mask, (128, 64), &camera, sun, None);
+        for v in [r, c, k] {
+            assert!(v.abs() < 0.05, "{r} {c} {k}");
+        }
+        // Pairs of columns share their noise: the rows' correlation is about
+        // a half (every other horizontal pair shares it), the columns' none.
+        let doubled = pair(&|i: usize| noise(i - i % 2));
+        let (r, c, _) = correlations(&doubled, &mask, (128, 64), &camera, sun, None);
+        assert!((r - 0.5).abs() < 0.1 && c.abs() < 0.05, "{r} {c}");
+        // Noise that depends on the angle from the sun alone: the circles'.
+        let theta = |i: usize| {
+            let dir = camera
+                .direction((i % w) as f64 + 0.5, (i / w) as f64 + 0.5)
+                .unwrap()
+                .normalize();
+            let bin =
+                (dir.dot(sun).clamp(-1.0, 1.0).acos() / (std::f64::consts::PI / h as f64)) as usize;
+            noise(bin + 7)
+        };
+        let circular = pair(&theta);
+        let (_, _, k) = correlations(&circular, &mask, (128, 64), &camera, sun, None);
+        assert!(k > 0.9, "{k}");
+    }
 }

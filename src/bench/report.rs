@@ -20,6 +20,14 @@ fn secs(v: f64) -> String {
     }
 }
 
+fn minutes(v: f64) -> String {
+    if v.is_finite() {
+        format!("{:.0} min", v / 60.0)
+    } else {
+        "n/a".into()
+    }
+}
+
 fn num(v: f64, decimals: usize) -> String {
     if v.is_finite() {
         format!("{v:.decimals$}")
@@ -89,6 +97,31 @@ pub fn format_report(report: &Report) -> String {
             d.target_met.map_or("—", yes_no),
             r.first_frame_ms,
             yes_no(r.first_frame_ms <= FIRST_FRAME_TARGET_MS),
+        );
+    }
+    let _ = writeln!(out);
+    let _ = writeln!(
+        out,
+        "What the user sees (sun cone excluded): noise over the ground and the whole image, the whole image's time to 1 % at 4096×2048 (extrapolated), the noise's correlation between neighbours (rows, columns) and along the splats' circles, and the first pass's error against the reference.\n"
+    );
+    let _ = writeln!(
+        out,
+        "| scene | noise sky | noise ground | noise whole | 4K to 1 % | corr. rows | corr. columns | corr. circles | first-pass error |"
+    );
+    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    for (r, d) in report.scenes.iter().zip(&report.details) {
+        let _ = writeln!(
+            out,
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            r.scene,
+            pct(r.noise_at_budget),
+            pct(r.noise_ground_at_budget),
+            pct(r.noise_whole_at_budget),
+            minutes(r.time_to_1pct_4k_s),
+            num(d.run.row_correlation, 3),
+            num(d.run.column_correlation, 3),
+            num(d.run.circle_correlation, 3),
+            pct(r.first_frame_error),
         );
     }
     let _ = writeln!(out);

@@ -99,7 +99,7 @@ impl Renderer {
 
     /// Per pixel (row-major), whether the view ray through its centre
     /// meets the ground; `false` where no ray goes through it.
-    pub(crate) fn centre_ground(&self) -> Vec<bool> {
+    pub fn centre_ground(&self) -> Vec<bool> {
         let (width, height) = (self.scene.render.width, self.scene.render.height);
         (0..height)
             .flat_map(|y| (0..width).map(move |x| (x, y)))
