@@ -66,12 +66,10 @@ pub fn direct_transmittance(
     };
     // s = s_top t², ds = 2 s_top t dt.
     let f = |t: f64| extinction(s_top * t * t) * 2.0 * s_top * t;
-    let dt = 1.0 / STEPS as f64;
-    let mut sum = f(0.0) + f(1.0);
-    for i in 1..STEPS {
-        sum += if i % 2 == 1 { 4.0 } else { 2.0 } * f(i as f64 * dt);
-    }
-    (-sum * dt / 3.0).exp()
+    let depth: f64 = crate::physics::quadrature::simpson(0.0, 1.0, STEPS)
+        .map(|(t, w)| w * f(t))
+        .sum();
+    (-depth).exp()
 }
 
 /// The Sun as the observer receives it.

@@ -67,18 +67,16 @@ impl Renderer {
         // Any pass but the first: the scene's own options.
         let integrator = self.integrator(1);
         let signed = integrator.signed_estimates();
+        // Once per probe: with a date it runs the solar position algorithm.
+        let source = solar_source(&self.scene);
         wavelengths_nm
             .par_chunks(LANES)
             .enumerate()
             .flat_map_iter(|(chunk_index, chunk)| {
                 let mut lane_wavelengths = [chunk[0]; LANES];
                 lane_wavelengths[..chunk.len()].copy_from_slice(chunk);
-                let lanes = SpectralLanes::with_source(
-                    lane_wavelengths,
-                    chunk.len(),
-                    &self.medium,
-                    solar_source(&self.scene),
-                );
+                let lanes =
+                    SpectralLanes::with_source(lane_wavelengths, chunk.len(), &self.medium, source);
                 let mut sum = [0.0; LANES];
                 let mut sum2 = [0.0; LANES];
                 let mut discarded = [0u64; LANES];
