@@ -50,24 +50,32 @@ pub fn sky_mask(
     kind: SkyMask,
     mean_y: &[f64],
 ) -> Vec<bool> {
+    outside_sun_cone(camera, width, height, sun, |i, dir| match kind {
+        SkyMask::AboveHorizon => dir.z > 0.0,
+        SkyMask::Lit => mean_y.get(i).is_some_and(|&v| v > 0.0),
+    })
+}
+
+/// The pixels (row-major) whose centre's ray is farther than
+/// [`SUN_CONE_DEG`] from `sun` and for which `keep(index, direction)`
+/// holds.
+fn outside_sun_cone(
+    camera: &Camera,
+    width: u32,
+    height: u32,
+    sun: DVec3,
+    keep: impl Fn(usize, DVec3) -> bool,
+) -> Vec<bool> {
     let cos_cone = SUN_CONE_DEG.to_radians().cos();
-    let mut mask = Vec::with_capacity(width as usize * height as usize);
-    for y in 0..height {
-        for x in 0..width {
-            let i = mask.len();
-            let keep = camera
+    (0..height)
+        .flat_map(|y| (0..width).map(move |x| (x, y)))
+        .enumerate()
+        .map(|(i, (x, y))| {
+            camera
                 .direction(f64::from(x) + 0.5, f64::from(y) + 0.5)
-                .is_some_and(|dir| {
-                    dir.dot(sun) < cos_cone
-                        && match kind {
-                            SkyMask::AboveHorizon => dir.z > 0.0,
-                            SkyMask::Lit => mean_y.get(i).is_some_and(|&v| v > 0.0),
-                        }
-                });
-            mask.push(keep);
-        }
-    }
-    mask
+                .is_some_and(|dir| dir.normalize().dot(sun) < cos_cone && keep(i, dir))
+        })
+        .collect()
 }
 
 /// Relative RMS noise of the mean of two independent images,
@@ -326,19 +334,9 @@ pub fn whole_mask(
     kind: SkyMask,
     mean_y: &[f64],
 ) -> Vec<bool> {
-    let cos_cone = SUN_CONE_DEG.to_radians().cos();
-    (0..height)
-        .flat_map(|y| (0..width).map(move |x| (x, y)))
-        .enumerate()
-        .map(|(i, (x, y))| {
-            camera
-                .direction(f64::from(x) + 0.5, f64::from(y) + 0.5)
-                .is_some_and(|dir| {
-                    dir.normalize().dot(sun) < cos_cone
-                        && (kind == SkyMask::AboveHorizon || mean_y[i] > 0.0)
-                })
-        })
-        .collect()
+    outside_sun_cone(camera, width, height, sun, |i, _| {
+        kind == SkyMask::AboveHorizon || mean_y[i] > 0.0
+    })
 }
 
 /// (rows, columns, circles): the correlations of u = (A − B)/(A + B)
