@@ -77,7 +77,7 @@ impl Renderer {
                     lane_wavelengths,
                     chunk.len(),
                     &self.medium,
-                    solar_source(&self.scene),
+                    &solar_source(&self.scene),
                 );
                 let mut sum = [0.0; LANES];
                 let mut sum2 = [0.0; LANES];
