@@ -7,6 +7,7 @@ use std::path::PathBuf;
 use serde::{Deserialize, Serialize};
 
 use crate::physics::phase_table::PhaseTable;
+use crate::physics::spectrum_file::{self, Quantity, Tabulated};
 use crate::physics::{
     aerosol, ozone, rayleigh, standard_atmosphere, DEFAULT_ATMOSPHERE_TOP_M, DOBSON_UNIT_PER_M2,
     EARTH_RADIUS_M,
@@ -21,8 +22,15 @@ pub struct AtmosphereParams {
     pub planet_radius_m: f64,
     /// Top of the atmosphere above the ground, m.
     pub top_altitude_m: f64,
-    /// Lambertian ground albedo, 0–1.
+    /// Lambertian ground albedo, 0–1, at every wavelength (unless
+    /// `ground_albedo_spectrum` is given).
     pub ground_albedo: f64,
+    /// The ground's albedo as a spectrum, in place of `ground_albedo`: a
+    /// named one of [`spectrum_file::GROUND_SPECTRA`] (`grass`, `snow`,
+    /// `sand`, `ocean`), or a CSV file `wavelength_nm,albedo` (relative to
+    /// the scene file's folder).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ground_albedo_spectrum: Option<String>,
     pub ozone: bool,
     /// Total ozone column, Dobson units; `None` keeps the AFGL profile's own
     /// column (≈ 344 DU).
@@ -47,6 +55,7 @@ impl Default for AtmosphereParams {
             planet_radius_m: EARTH_RADIUS_M,
             top_altitude_m: DEFAULT_ATMOSPHERE_TOP_M,
             ground_albedo: 0.3,
+            ground_albedo_spectrum: None,
             ozone: true,
             ozone_du: None,
             aerosols: true,
@@ -208,6 +217,72 @@ impl AlbedoSpectrum {
                     }
                 }
                 Ok(())
+            }
+        }
+    }
+}
+
+/// The ground's albedo over wavelength ([`AtmosphereParams::ground_albedo`]
+/// or [`AtmosphereParams::ground_albedo_spectrum`]).
+#[derive(Clone, Debug, PartialEq)]
+pub enum GroundAlbedo {
+    /// The same albedo at every wavelength.
+    Constant(f64),
+    /// A tabulated spectrum.
+    Spectrum(std::sync::Arc<Tabulated>),
+}
+
+impl GroundAlbedo {
+    /// The albedo at `wavelength_nm`.
+    pub fn at(&self, wavelength_nm: f64) -> f64 {
+        match self {
+            Self::Constant(albedo) => *albedo,
+            Self::Spectrum(table) => table.at(wavelength_nm),
+        }
+    }
+
+    /// The largest albedo at any wavelength: for sampling densities that
+    /// need one number for all lanes, never for an estimate's value.
+    pub fn max(&self) -> f64 {
+        match self {
+            Self::Constant(albedo) => *albedo,
+            Self::Spectrum(table) => table.max(),
+        }
+    }
+}
+
+impl AtmosphereParams {
+    /// The ground's albedo: the spectrum `ground_albedo_spectrum` names
+    /// (built in, or read from its file), else `ground_albedo`.
+    pub fn ground(&self) -> Result<GroundAlbedo, SceneError> {
+        let Some(name) = &self.ground_albedo_spectrum else {
+            return Ok(GroundAlbedo::Constant(self.ground_albedo));
+        };
+        if let Some(table) = spectrum_file::named_ground(name) {
+            return Ok(GroundAlbedo::Spectrum(table));
+        }
+        let names: Vec<&str> = spectrum_file::GROUND_SPECTRA.iter().map(|s| s.0).collect();
+        if !name.to_ascii_lowercase().ends_with(".csv") {
+            return Err(SceneError::new(
+                "atmosphere.ground_albedo_spectrum",
+                format!(
+                    "'{name}' is neither a named spectrum ({}) nor a .csv file",
+                    names.join(", ")
+                ),
+            ));
+        }
+        Tabulated::cached(std::path::Path::new(name), Quantity::Albedo)
+            .map(GroundAlbedo::Spectrum)
+            .map_err(|e| SceneError::new("atmosphere.ground_albedo_spectrum", e))
+    }
+
+    /// `ground_albedo_spectrum` taken from folder `base` where it is a
+    /// relative file path (not a named spectrum).
+    pub fn resolve_ground_file(&mut self, base: &std::path::Path) {
+        if let Some(name) = &mut self.ground_albedo_spectrum {
+            let path = std::path::Path::new(name.as_str());
+            if spectrum_file::named_ground(name).is_none() && path.is_relative() {
+                *name = base.join(path).to_string_lossy().into_owned();
             }
         }
     }

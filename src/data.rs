@@ -62,6 +62,15 @@ pub const ELTERMAN_AEROSOL: &str = include_str!("../data/elterman1968_aerosol.cs
 /// Elterman (1968) total attenuation at 22 wavelengths.
 pub const ELTERMAN_TOTAL: &str = include_str!("../data/elterman1968_total_attenuation.csv");
 
+/// Lawn grass GDS91 (green), USGS Spectral Library 7, 360–830 nm / 5 nm.
+pub const GROUND_GRASS: &str = include_str!("../data/ground_grass.csv");
+/// Melting snow mSnw01a, USGS Spectral Library 7, 360–830 nm / 5 nm.
+pub const GROUND_SNOW: &str = include_str!("../data/ground_snow.csv");
+/// Sand DWO-3-DEL2ar1 (no oil), USGS Spectral Library 7, 360–830 nm / 5 nm.
+pub const GROUND_SAND: &str = include_str!("../data/ground_sand.csv");
+/// Seawater, open ocean SW2, USGS Spectral Library 7, 360–830 nm / 5 nm.
+pub const GROUND_OCEAN: &str = include_str!("../data/ground_ocean.csv");
+
 /// Piecewise-linear interpolation of `ys(xs)` at `x`, clamped to the ends.
 /// `xs` must be ascending.
 pub fn interpolate(xs: &[f64], ys: &[f64], x: f64) -> f64 {

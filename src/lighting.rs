@@ -94,7 +94,14 @@ pub fn sun_light(scene: &Scene) -> Option<SunLight> {
     } else {
         Some(scene.sun_distance_au().powi(-2))
     };
-    let spectrum = sun::Spectrum::get();
+    // The scene's spectrum file, if it names one (a validated scene's
+    // reads), else the built-in table.
+    let file = scene
+        .sun_spectrum()
+        .ok()
+        .flatten()
+        .map(|table| sun::Spectrum::from_tabulated(&table));
+    let spectrum = file.as_ref().unwrap_or_else(|| sun::Spectrum::get());
     let transmitted = |wavelength_nm: f64| {
         let top = scale.map_or(1.0, |s| s * spectrum.irradiance_w_m2_nm(wavelength_nm));
         top * direct_transmittance(

@@ -41,6 +41,23 @@ pub struct Sun {
     /// solar spectrum's own distance).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub distance_au: Option<f64>,
+    /// The Sun's spectral irradiance at 1 AU, a CSV file
+    /// `wavelength_nm,irradiance` in W m⁻² nm⁻¹ (relative to the scene
+    /// file's folder), in place of the built-in ASTM E-490 table; scaled by
+    /// 1/`distance_au`² as the table is.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub spectrum: Option<std::path::PathBuf>,
+    /// Whether the disc is limb-darkened (Neckel & Labs 1994,
+    /// [`crate::physics::sun::NECKEL_LABS_1994`]) rather than uniform; the
+    /// disc's irradiance is the same either way.
+    #[serde(skip_serializing_if = "is_true")]
+    pub limb_darkening: bool,
+}
+
+/// Whether `value` is true (serde's `skip_serializing_if` passes a reference).
+#[allow(clippy::trivially_copy_pass_by_ref)]
+fn is_true(value: &bool) -> bool {
+    *value
 }
 
 impl Default for Sun {
@@ -52,6 +69,8 @@ impl Default for Sun {
             latitude_deg: None,
             longitude_deg: None,
             distance_au: None,
+            spectrum: None,
+            limb_darkening: true,
         }
     }
 }
@@ -459,6 +478,14 @@ impl Scene {
                 *file = base.join(&*file);
             }
         }
+        if let Some(base) = base {
+            scene.atmosphere.resolve_ground_file(base);
+            if let Some(file) = &mut scene.sun.spectrum {
+                if file.is_relative() {
+                    *file = base.join(&*file);
+                }
+            }
+        }
         scene.place_sun()?;
         scene.validate()?;
         Ok(scene)
@@ -516,6 +543,21 @@ impl Scene {
                 .flatten()
                 .map_or(1.0, |sun| sun.distance_au)
         })
+    }
+
+    /// The Sun's spectrum file's table, if `[sun] spectrum` names one.
+    pub fn sun_spectrum(
+        &self,
+    ) -> Result<Option<std::sync::Arc<crate::physics::spectrum_file::Tabulated>>, SceneError> {
+        use crate::physics::spectrum_file::{Quantity, Tabulated};
+        self.sun
+            .spectrum
+            .as_deref()
+            .map(|path| {
+                Tabulated::cached(path, Quantity::Irradiance)
+                    .map_err(|e| SceneError::new("sun.spectrum", e))
+            })
+            .transpose()
     }
 
     /// Reads a scene file: at most [`MAX_SCENE_FILE_BYTES`] of UTF-8 TOML.
@@ -592,6 +634,8 @@ impl Scene {
         check_range("planet radius (m)", a.planet_radius_m, 1e5, 1e8)?;
         check_range("atmosphere top (m)", a.top_altitude_m, 1_000.0, 200_000.0)?;
         check_range("ground albedo", a.ground_albedo, 0.0, 1.0)?;
+        a.ground()?;
+        self.sun_spectrum()?;
         if let Some(du) = a.ozone_du {
             check_range("ozone column (DU)", du, 0.0, 2_000.0)?;
         }

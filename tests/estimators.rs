@@ -260,6 +260,26 @@ fn direct_sun_transmittance_is_beer_lambert() {
 
 #[test]
 fn white_ground_without_absorption_conserves_energy() {
+    white_ground_conserves_energy(AtmosphereParams {
+        ground_albedo: 1.0,
+        ..AtmosphereParams::default()
+    });
+}
+
+#[test]
+fn white_ground_spectrum_without_absorption_conserves_energy() {
+    // The same, the white ground given as an albedo spectrum file.
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("white.csv");
+    std::fs::write(&path, "wavelength_nm,albedo\n360,1\n600,1\n830,1\n").unwrap();
+    white_ground_conserves_energy(AtmosphereParams {
+        ground_albedo: 0.0,
+        ground_albedo_spectrum: Some(path.to_string_lossy().into_owned()),
+        ..AtmosphereParams::default()
+    });
+}
+
+fn white_ground_conserves_energy(ground: AtmosphereParams) {
     // No absorber and a white Lambertian ground: everything that enters leaves
     // again, so the upward flux at the top equals μ₀E. The flux is π times the
     // mean radiance over cosine-distributed downward views from just above.
@@ -270,9 +290,8 @@ fn white_ground_without_absorption_conserves_energy() {
     let atmosphere = Atmosphere::new(AtmosphereParams {
         ozone: false,
         aerosol_albedo: 1.0,
-        ground_albedo: 1.0,
         planet_radius_m: 1e9,
-        ..AtmosphereParams::default()
+        ..ground
     });
     let medium = Medium::new(&atmosphere);
     let options = IntegratorOptions::default();

@@ -438,8 +438,17 @@ fn the_sun_and_sky_layers_agree_with_the_probe_restricted_to_their_light() {
     let wavelengths: Vec<f64> = (0..=(to - from) as usize)
         .map(|i| from + i as f64)
         .collect();
+    // The four pixels' centres lie half a pixel from the image's centre in
+    // both axes, θ = atan(√2 · tan(0.5°)/32) from the sun's centre: the
+    // limb-darkened disc's radiance there is what they see (to 0.1 %, its
+    // curvature over a pixel). The probe looks at the same elevation, θ
+    // away in azimuth.
+    let theta_deg = (2.0_f64.sqrt() * 0.5_f64.to_radians().tan() / 32.0)
+        .atan()
+        .to_degrees();
+    let probe_az = az + theta_deg / el.to_radians().cos();
     let probe = |light: ProbeLight, samples: u32| -> (f64, f64) {
-        let estimates = renderer.probe_light(90.0 - el, az, &wavelengths, samples, light);
+        let estimates = renderer.probe_light(90.0 - el, probe_az, &wavelengths, samples, light);
         let k = skyrender::spectrum::K_M;
         let mean: f64 = estimates
             .iter()

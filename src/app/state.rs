@@ -463,9 +463,28 @@ impl AppState {
             .unwrap_or(self.profile_ozone_du)
     }
 
-    /// Lambertian ground albedo, clamped to 0–1.
+    /// Lambertian ground albedo, clamped to 0–1, at every wavelength (it
+    /// takes the place of an albedo spectrum).
     pub fn set_ground_albedo(&mut self, albedo: f64) {
+        if albedo.is_finite() && self.scene.atmosphere.ground_albedo_spectrum.is_some() {
+            self.scene.atmosphere.ground_albedo_spectrum = None;
+            self.dirty = true;
+        }
         self.update(albedo, (0.0, 1.0), |s| &mut s.atmosphere.ground_albedo);
+    }
+
+    /// The ground's albedo spectrum: one of the named spectra
+    /// ([`crate::physics::spectrum_file::GROUND_SPECTRA`]), or `None` for
+    /// the albedo slider's one number. Another name is ignored.
+    pub fn set_ground_spectrum(&mut self, name: Option<&str>) {
+        if name.is_some_and(|n| crate::physics::spectrum_file::named_ground(n).is_none()) {
+            return;
+        }
+        let value = name.map(str::to_owned);
+        if self.scene.atmosphere.ground_albedo_spectrum != value {
+            self.scene.atmosphere.ground_albedo_spectrum = value;
+            self.dirty = true;
+        }
     }
 
     /// Preview resolution scale, clamped to [`PREVIEW_SCALE_RANGE`].
@@ -674,6 +693,18 @@ mod tests {
         assert_eq!(state.scene().observer.altitude_m, MAX_APP_ALTITUDE_M);
         state.set_ground_albedo(2.0);
         assert_eq!(state.scene().atmosphere.ground_albedo, 1.0);
+        state.set_ground_spectrum(Some("snow"));
+        assert_eq!(
+            state.scene().atmosphere.ground_albedo_spectrum.as_deref(),
+            Some("snow")
+        );
+        state.set_ground_spectrum(Some("moss"));
+        assert_eq!(
+            state.scene().atmosphere.ground_albedo_spectrum.as_deref(),
+            Some("snow")
+        );
+        state.set_ground_albedo(0.5);
+        assert_eq!(state.scene().atmosphere.ground_albedo_spectrum, None);
         state.set_ozone_du(Some(f64::NAN));
         assert_eq!(state.scene().atmosphere.ozone_du, None);
         state.set_ozone_du(Some(5_000.0));

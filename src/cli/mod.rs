@@ -274,6 +274,19 @@ pub struct SceneArgs {
     /// Lambertian ground albedo, 0 to 1 [default: 0.3].
     #[arg(long, allow_negative_numbers = true, value_name = "A")]
     pub ground_albedo: Option<f64>,
+    /// The ground's albedo spectrum: grass, snow, sand, ocean (USGS
+    /// Spectral Library 7) or a CSV file `wavelength_nm,albedo`; replaces
+    /// --ground-albedo [default: none].
+    #[arg(long, value_name = "NAME|FILE")]
+    pub ground_spectrum: Option<String>,
+    /// The Sun's spectral irradiance at 1 AU, a CSV file
+    /// `wavelength_nm,irradiance` in W m⁻² nm⁻¹ [default: ASTM E-490].
+    #[arg(long, value_name = "FILE")]
+    pub sun_spectrum: Option<std::path::PathBuf>,
+    /// A uniform solar disc instead of the limb-darkened one (Neckel &
+    /// Labs 1994).
+    #[arg(long)]
+    pub no_limb_darkening: bool,
     /// PNG exposure, EV, -50 to 50: a luminance of L cd/m² is shown as
     /// L × 2^EV before the tone curve [default: automatic].
     #[arg(long, allow_negative_numbers = true, value_name = "EV")]
@@ -419,6 +432,16 @@ impl SceneArgs {
         }
         if let Some(v) = self.ground_albedo {
             scene.atmosphere.ground_albedo = v;
+            scene.atmosphere.ground_albedo_spectrum = None;
+        }
+        if let Some(v) = &self.ground_spectrum {
+            scene.atmosphere.ground_albedo_spectrum = Some(v.clone());
+        }
+        if let Some(v) = &self.sun_spectrum {
+            scene.sun.spectrum = Some(v.clone());
+        }
+        if self.no_limb_darkening {
+            scene.sun.limb_darkening = false;
         }
         if let Some(v) = self.exposure {
             scene.render.exposure_ev = Some(v);
@@ -726,6 +749,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
                 "aerosol_extinction_m": atmosphere.aerosol_extinction_per_m(altitude_m, wavelength),
                 "aerosol_albedo": scene.atmosphere.aerosol_single_scattering_albedo(wavelength),
                 "aerosol_asymmetry": scene.atmosphere.aerosol_mean_cosine(),
+                "ground_albedo": scene.atmosphere.ground()?.at(wavelength),
                 "optical_depth": depth,
             });
             if json {

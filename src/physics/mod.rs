@@ -10,6 +10,7 @@ pub mod phase_table;
 pub mod quadrature;
 pub mod rayleigh;
 pub mod solar_position;
+pub mod spectrum_file;
 pub mod standard_atmosphere;
 pub mod sun;
 

@@ -209,7 +209,8 @@ impl SkyGuide {
             let ground = origin_m + dir * span.t_exit;
             let cos = ground.normalize().dot(self.sun_direction);
             if cos > 0.0 {
-                light += ray.transmitted() * medium.ground_albedo / std::f64::consts::PI
+                // The largest albedo over wavelength: the guide is a density.
+                light += ray.transmitted() * medium.ground_albedo_max / std::f64::consts::PI
                     * cos
                     * self.builder.sun_transmittance(medium, ground);
             }

@@ -872,9 +872,22 @@ impl<'a> Integrator<'a> {
         t * (sin_theta * cos_phi) + b * (sin_theta * sin_phi) + self.sun_direction * cos_theta
     }
 
-    /// Solar radiance per lane (uniform disc: E / Ω).
-    fn sun_radiance(&self, lanes: &SpectralLanes) -> Lanes {
-        lanes.sun_irradiance.map(|e| e / self.sun_solid_angle_sr)
+    /// The solar irradiance per lane that a next-event estimate along
+    /// `to_sun`, drawn uniformly in the disc's cone
+    /// ([`Self::sample_sun_direction`]), carries: E × L(μ)/L̄, the disc's
+    /// radiance there over its mean ([`sun::radiance_over_mean`]). Its mean
+    /// over the cone is E, so the estimate of a limb-darkened disc stays
+    /// unbiased; for a uniform disc the factor is exactly 1.
+    fn sun_irradiance_toward(&self, to_sun: DVec3, lanes: &SpectralLanes) -> Lanes {
+        let mu = sun::disc_mu(to_sun.dot(self.sun_direction), self.cos_sun_radius);
+        std::array::from_fn(|j| lanes.sun_irradiance[j] * sun::polynomial(&lanes.limb[j], mu))
+    }
+
+    /// Solar radiance per lane along `dir`, a direction within the disc:
+    /// E / Ω × L(μ)/L̄ (E / Ω for a uniform disc).
+    fn sun_radiance(&self, dir: DVec3, lanes: &SpectralLanes) -> Lanes {
+        self.sun_irradiance_toward(dir, lanes)
+            .map(|e| e / self.sun_solid_angle_sr)
     }
 
     fn shadow(&self, origin: DVec3, dir: DVec3, lanes: &SpectralLanes, rng: &mut Rng) -> Lanes {
@@ -1408,12 +1421,13 @@ impl<'a> Integrator<'a> {
         };
         // Where the path goes on: from the medium, from the ground, or not.
         let goes_on = depth + 1 < max_order;
-        let ground_goes_on = goes_on && span.hits_ground && self.medium.ground_albedo > 0.0;
+        let ground_goes_on = goes_on && span.hits_ground && self.medium.ground_albedo_max > 0.0;
         let p_medium = match (distribution, goes_on) {
             // The camera ray's light scattered again in the air is splatted.
             _ if depth == 0 && self.splatting => 0.0,
             (Some(d), true) if ground_goes_on => {
-                let (medium, ground) = d.shares(self.medium.ground_albedo);
+                // The largest albedo over wavelength: a density, not a value.
+                let (medium, ground) = d.shares(self.medium.ground_albedo_max);
                 (medium / (medium + ground)).clamp(0.05, 0.95)
             }
             // Without Russian roulette the path must still end: go on with
@@ -1510,12 +1524,13 @@ impl<'a> Integrator<'a> {
             let mu = dir.dot(to_sun);
             let tr_sun = self.shadow(x, to_sun, lanes, rng);
             let weight = 1.0 / (n as f64 * density);
+            let e_sun = self.sun_irradiance_toward(to_sun, lanes);
             for j in 0..LANES {
                 radiance[j] += beta[j]
                     * tr_view[j]
                     * weight
                     * self.scattering_phase(&c, lanes, j, mu)
-                    * lanes.sun_irradiance[j]
+                    * e_sun[j]
                     * tr_sun[j];
             }
         }
@@ -1530,8 +1545,9 @@ impl<'a> Integrator<'a> {
             if ground_goes_on {
                 // Each ground branch bounces on its own (see `ground_vertex`).
                 let x = ground_point(self.medium, normal);
-                let albedo = self.medium.ground_albedo;
-                let weight = through.map(|v| v * albedo * share / (1.0 - p_medium));
+                let weight: Lanes = std::array::from_fn(|j| {
+                    through[j] * lanes.ground_albedo[j] * share / (1.0 - p_medium)
+                });
                 for ((slot, _), u) in next[..branches]
                     .iter_mut()
                     .zip(&from_medium)
@@ -1632,8 +1648,7 @@ impl<'a> Integrator<'a> {
                 return Some(Next::Scatter(x, dir, beta, control));
             }
         }
-        let albedo = self.medium.ground_albedo;
-        if !span.hits_ground || albedo <= 0.0 {
+        if !span.hits_ground || self.medium.ground_albedo_max <= 0.0 {
             return None;
         }
         // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
@@ -1641,7 +1656,7 @@ impl<'a> Integrator<'a> {
         Some(Next::Vertex((
             ground_point(self.medium, normal),
             cosine_sample_hemisphere(normal, rng),
-            beta.map(|b| b * albedo),
+            std::array::from_fn(|j| beta[j] * lanes.ground_albedo[j]),
         )))
     }
 
@@ -1720,7 +1735,7 @@ impl<'a> Integrator<'a> {
         radiance: &mut Light,
     ) {
         if dir.dot(self.sun_direction) >= self.cos_sun_radius {
-            let l_sun = self.sun_radiance(lanes);
+            let l_sun = self.sun_radiance(dir, lanes);
             for j in 0..LANES {
                 radiance.total[j] += beta[j] * l_sun[j];
                 if depth == 0 {
@@ -1744,15 +1759,14 @@ impl<'a> Integrator<'a> {
     ) -> Option<Vertex> {
         self.ground_direct(normal, depth, beta, lanes, radiance, rng);
         let max_order = self.options.max_scattering_order.unwrap_or(u32::MAX);
-        let albedo = self.medium.ground_albedo;
-        if depth + 1 >= max_order || albedo <= 0.0 {
+        if depth + 1 >= max_order || self.medium.ground_albedo_max <= 0.0 {
             return None;
         }
         // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
         Some((
             ground_point(self.medium, normal),
             cosine_sample_hemisphere(normal, rng),
-            beta.map(|b| b * albedo),
+            std::array::from_fn(|j| beta[j] * lanes.ground_albedo[j]),
         ))
     }
 
@@ -1770,14 +1784,14 @@ impl<'a> Integrator<'a> {
         let opts = self.options;
         let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
         let x = ground_point(self.medium, normal);
-        let albedo = self.medium.ground_albedo;
         if opts.next_event_estimation && depth < max_order {
             let to_sun = self.sample_sun_direction(rng);
             let cos = normal.dot(to_sun);
             if cos > 0.0 {
                 let tr = self.shadow(x, to_sun, lanes, rng);
+                let e_sun = self.sun_irradiance_toward(to_sun, lanes);
                 for j in 0..LANES {
-                    radiance[j] += beta[j] * albedo / PI * cos * lanes.sun_irradiance[j] * tr[j];
+                    radiance[j] += beta[j] * lanes.ground_albedo[j] / PI * cos * e_sun[j] * tr[j];
                 }
             }
         }
@@ -1939,10 +1953,11 @@ impl<'a> Integrator<'a> {
                         let to_sun = self.sample_sun_direction(rng);
                         let mu = dir.dot(to_sun);
                         let tr = self.shadow(x, to_sun, lanes, rng);
+                        let e_sun = self.sun_irradiance_toward(to_sun, lanes);
                         for j in 0..LANES {
                             radiance[j] += beta[j] * self.scattering_phase(&c, lanes, j, mu)
                                 / majorant
-                                * lanes.sun_irradiance[j]
+                                * e_sun[j]
                                 * tr[j];
                         }
                     }

@@ -131,7 +131,7 @@ impl Renderer {
             .map(|chunk| {
                 let mut w = [chunk[0]; LANES];
                 w[..chunk.len()].copy_from_slice(chunk);
-                SpectralLanes::with_source(w, chunk.len(), &self.medium, source)
+                SpectralLanes::with_source(w, chunk.len(), &self.medium, &source)
             })
             .collect()
     }

@@ -30,7 +30,10 @@ use super::columns::{ColumnTable, FixedStart};
 fn takes_table(estimator: TransmittanceEstimator, bounds: Bounds) -> bool {
     (estimator, bounds) == (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight)
 }
-use crate::atmosphere::{AerosolSpectrum, AlbedoSpectrum, Atmosphere};
+use std::sync::Arc;
+
+use crate::atmosphere::{AerosolSpectrum, AlbedoSpectrum, Atmosphere, GroundAlbedo};
+use crate::physics::spectrum_file::Tabulated;
 use crate::physics::{aerosol, ozone, rayleigh, standard_atmosphere, sun};
 use crate::rng::Rng;
 
@@ -137,7 +140,12 @@ pub struct Medium {
     /// The shells' bounds as rows, and in the last slot the one shell
     /// spanning the whole atmosphere (the "global majorant" variant).
     shell_terms: ShellTerms,
-    pub ground_albedo: f64,
+    /// The ground's albedo over wavelength (the lanes carry it per
+    /// wavelength: [`SpectralLanes::ground_albedo`]).
+    pub ground: GroundAlbedo,
+    /// The ground's largest albedo at any wavelength: for sampling
+    /// densities only.
+    pub ground_albedo_max: f64,
     /// The aerosol's single-scattering albedo.
     aerosol_albedo: AlbedoSpectrum,
     /// The aerosol's phase function.
@@ -279,6 +287,12 @@ pub struct SpectralLanes {
     aerosol_albedo: Lanes,
     /// Top-of-atmosphere spectral irradiance, W m⁻² nm⁻¹ (or 1 for a unit sun).
     pub sun_irradiance: Lanes,
+    /// The ground's Lambertian albedo.
+    pub ground_albedo: Lanes,
+    /// The solar disc's radiance relative to its mean, as a polynomial in
+    /// the heliocentric μ ([`sun::radiance_over_mean`]; [1, 0, …] for a
+    /// uniform disc).
+    pub limb: [[f64; sun::LIMB_COEFFICIENTS]; LANES],
     /// Majorants and residual bounds per slot of [`ShellTerms`] for these
     /// wavelengths, computed once per path.
     majorants: [f64; SHELL_SLOTS],
@@ -287,66 +301,111 @@ pub struct SpectralLanes {
 
 /// The per-wavelength constants of one lane, in the order of
 /// [`LaneTable`]'s rows: Rayleigh cross-section (m²), Rayleigh phase γ,
-/// aerosol factor, solar irradiance, aerosol single-scattering albedo, then
-/// the ozone cross-section (m²) at the 11 tabulated temperatures.
+/// aerosol factor, solar irradiance, aerosol single-scattering albedo,
+/// ground albedo, the disc's limb-darkening coefficients
+/// ([`sun::radiance_over_mean`], linear in them, so interpolating keeps
+/// the disc's mean at 1), then the ozone cross-section (m²) at the 11
+/// tabulated temperatures.
 type LaneConstants = [f64; OZONE_CONSTANTS + 11];
+/// Index of the first limb-darkening coefficient in [`LaneConstants`].
+const LIMB_CONSTANTS: usize = 6;
 /// Index of the first ozone cross-section in [`LaneConstants`].
-const OZONE_CONSTANTS: usize = 5;
+const OZONE_CONSTANTS: usize = LIMB_CONSTANTS + sun::LIMB_COEFFICIENTS;
 
-/// The solar spectral irradiance at the top of the atmosphere that the
-/// lanes carry.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub enum SolarSource {
+/// The Sun the lanes carry: its spectral irradiance at the top of the
+/// atmosphere and whether its disc is limb-darkened.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SolarSource {
+    irradiance: SolarIrradiance,
+    /// Whether the disc is limb-darkened ([`sun::radiance_over_mean`]).
+    pub limb_darkening: bool,
+}
+
+/// The solar spectral irradiance of a [`SolarSource`].
+#[derive(Clone, Debug, PartialEq)]
+enum SolarIrradiance {
     /// 1 W m⁻² nm⁻¹ at every wavelength (`unit_sun`).
     Unit,
-    /// The measured spectrum at 1 AU times `scale`: 1/d² at d AU, since
-    /// the irradiance falls with the square of the distance.
+    /// A spectrum at 1 AU times `scale`: 1/d² at d AU, since the
+    /// irradiance falls with the square of the distance.
     Measured {
         /// Factor on the 1 AU spectrum.
         scale: f64,
+        /// The spectrum from a file (`[sun] spectrum`); `None`, the
+        /// built-in ASTM E-490 table.
+        file: Option<Arc<sun::Spectrum>>,
     },
 }
 
 impl SolarSource {
-    /// `Unit`, or the measured spectrum at 1 AU.
+    /// Unit, or the measured spectrum at 1 AU; a uniform disc.
     pub fn from_unit_sun(unit_sun: bool) -> Self {
-        if unit_sun {
-            Self::Unit
-        } else {
-            Self::Measured { scale: 1.0 }
-        }
+        Self::at_distance(unit_sun, 1.0)
     }
 
-    /// `Unit`, or the measured spectrum at `distance_au`.
+    /// Unit, or the measured spectrum at `distance_au`; a uniform disc.
     pub fn at_distance(unit_sun: bool, distance_au: f64) -> Self {
-        if unit_sun {
-            Self::Unit
+        let irradiance = if unit_sun {
+            SolarIrradiance::Unit
         } else {
-            Self::Measured {
+            SolarIrradiance::Measured {
                 scale: (distance_au * distance_au).recip(),
+                file: None,
             }
+        };
+        Self {
+            irradiance,
+            limb_darkening: false,
         }
     }
 
-    fn irradiance_w_m2_nm(self, wavelength_nm: f64) -> f64 {
-        match self {
-            Self::Unit => 1.0,
-            // At 1 AU exactly the table's own value, bit for bit.
-            Self::Measured { scale: 1.0 } => sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm),
-            Self::Measured { scale } => {
-                scale * sun::Spectrum::get().irradiance_w_m2_nm(wavelength_nm)
+    /// The same source with the spectrum of `table` (W m⁻² nm⁻¹ at 1 AU)
+    /// in place of the built-in one (a unit sun stays unit).
+    #[must_use]
+    pub fn with_spectrum(mut self, table: Option<&Tabulated>) -> Self {
+        if let (SolarIrradiance::Measured { file, .. }, Some(table)) = (&mut self.irradiance, table)
+        {
+            *file = Some(Arc::new(sun::Spectrum::from_tabulated(table)));
+        }
+        self
+    }
+
+    /// The same source with a limb-darkened (`true`) or uniform disc.
+    #[must_use]
+    pub fn with_limb_darkening(mut self, darkened: bool) -> Self {
+        self.limb_darkening = darkened;
+        self
+    }
+
+    fn irradiance_w_m2_nm(&self, wavelength_nm: f64) -> f64 {
+        match &self.irradiance {
+            SolarIrradiance::Unit => 1.0,
+            SolarIrradiance::Measured { scale, file } => {
+                let spectrum = file.as_deref().unwrap_or_else(|| sun::Spectrum::get());
+                let e = spectrum.irradiance_w_m2_nm(wavelength_nm);
+                // At 1 AU exactly the table's own value, bit for bit.
+                if *scale == 1.0 {
+                    e
+                } else {
+                    scale * e
+                }
             }
         }
     }
 }
 
-fn lane_constants(wavelength_nm: f64, medium: &Medium, source: SolarSource) -> LaneConstants {
+fn lane_constants(wavelength_nm: f64, medium: &Medium, source: &SolarSource) -> LaneConstants {
     let mut c = [0.0; OZONE_CONSTANTS + 11];
     c[0] = rayleigh::cross_section_m2(wavelength_nm);
     c[1] = rayleigh::phase_gamma(wavelength_nm);
     c[2] = medium.aerosol_spectrum.factor(wavelength_nm);
     c[3] = source.irradiance_w_m2_nm(wavelength_nm);
     c[4] = medium.aerosol_albedo.at(wavelength_nm);
+    c[5] = medium.ground.at(wavelength_nm);
+    c[LIMB_CONSTANTS..OZONE_CONSTANTS].copy_from_slice(&sun::radiance_over_mean(
+        wavelength_nm,
+        source.limb_darkening,
+    ));
     if medium.ozone_on {
         c[OZONE_CONSTANTS..]
             .copy_from_slice(&ozone::CrossSections::get().at_wavelength(wavelength_nm));
@@ -378,7 +437,7 @@ impl LaneTable {
             first_nm: from_nm,
             step_nm: Self::STEP_NM,
             rows: (0..count)
-                .map(|i| lane_constants(from_nm + i as f64 * Self::STEP_NM, medium, source))
+                .map(|i| lane_constants(from_nm + i as f64 * Self::STEP_NM, medium, &source))
                 .collect(),
             source,
         }
@@ -387,7 +446,7 @@ impl LaneTable {
     fn constants(&self, wavelength_nm: f64, medium: &Medium) -> LaneConstants {
         let x = (wavelength_nm - self.first_nm) / self.step_nm;
         if !(x >= 0.0 && x < (self.rows.len() - 1) as f64) {
-            return lane_constants(wavelength_nm, medium, self.source);
+            return lane_constants(wavelength_nm, medium, &self.source);
         }
         let i = x as usize;
         let f = x - i as f64;
@@ -412,7 +471,7 @@ impl SpectralLanes {
             wavelengths_nm,
             active,
             medium,
-            SolarSource::from_unit_sun(unit_sun),
+            &SolarSource::from_unit_sun(unit_sun),
         )
     }
 
@@ -421,7 +480,7 @@ impl SpectralLanes {
         wavelengths_nm: Lanes,
         active: usize,
         medium: &Medium,
-        source: SolarSource,
+        source: &SolarSource,
     ) -> Self {
         Self::from_constants(
             wavelengths_nm,
@@ -450,6 +509,8 @@ impl SpectralLanes {
             aerosol_factor: [0.0; LANES],
             aerosol_albedo: [0.0; LANES],
             sun_irradiance: [0.0; LANES],
+            ground_albedo: [0.0; LANES],
+            limb: [[0.0; sun::LIMB_COEFFICIENTS]; LANES],
         };
         for (j, c) in constants.iter().enumerate() {
             lanes.rayleigh_m2[j] = c[0];
@@ -457,6 +518,8 @@ impl SpectralLanes {
             lanes.aerosol_factor[j] = c[2];
             lanes.sun_irradiance[j] = c[3];
             lanes.aerosol_albedo[j] = c[4];
+            lanes.ground_albedo[j] = c[5];
+            lanes.limb[j].copy_from_slice(&c[LIMB_CONSTANTS..OZONE_CONSTANTS]);
             let ozone = &c[OZONE_CONSTANTS..];
             lanes.ozone_m2[j].copy_from_slice(ozone);
             lanes.ozone_max_m2[j] = ozone.iter().copied().fold(0.0, f64::max);
@@ -560,6 +623,9 @@ fn node_at(nodes: &[Node], z_m: f64) -> Node {
 impl Medium {
     pub fn new(atmosphere: &Atmosphere) -> Self {
         let p = &atmosphere.params;
+        let ground = p
+            .ground()
+            .expect("a validated scene's ground albedo (Scene::validate reads it)");
         let top_m = p.top_altitude_m;
         let count = (top_m / NODE_STEP_M).ceil() as usize + 2;
         let nodes: Vec<Node> = (0..count)
@@ -639,7 +705,8 @@ impl Medium {
             shell_radii_m: boundaries.iter().map(|b| b + p.planet_radius_m).collect(),
             shells,
             nodes,
-            ground_albedo: p.ground_albedo,
+            ground: ground.clone(),
+            ground_albedo_max: ground.max(),
             aerosol_albedo: p.aerosol_albedo_spectrum(),
             aerosol_phase: p
                 .aerosol_phase_function()

@@ -44,10 +44,17 @@ pub use medium::{
 pub use memory::OutOfMemory;
 pub use probe::SpectralEstimate;
 
-/// The sun's irradiance for `scene`: unit, or the measured spectrum at the
-/// scene's Earth–Sun distance ([`Scene::sun_distance_au`]).
+/// The sun for `scene`: unit, or the measured spectrum (the built-in
+/// table or `[sun] spectrum`) at the scene's Earth–Sun distance
+/// ([`Scene::sun_distance_au`]), with its disc limb-darkened or uniform
+/// (`[sun] limb_darkening`).
 pub fn solar_source(scene: &Scene) -> SolarSource {
+    let file = scene
+        .sun_spectrum()
+        .expect("a validated scene's sun spectrum (Scene::validate reads it)");
     SolarSource::at_distance(scene.render.unit_sun, scene.sun_distance_au())
+        .with_spectrum(file.as_deref())
+        .with_limb_darkening(scene.sun.limb_darkening)
 }
 
 use crate::atmosphere::Atmosphere;

@@ -75,8 +75,12 @@ impl Renderer {
             .flat_map_iter(|(chunk_index, chunk)| {
                 let mut lane_wavelengths = [chunk[0]; LANES];
                 lane_wavelengths[..chunk.len()].copy_from_slice(chunk);
-                let lanes =
-                    SpectralLanes::with_source(lane_wavelengths, chunk.len(), &self.medium, source);
+                let lanes = SpectralLanes::with_source(
+                    lane_wavelengths,
+                    chunk.len(),
+                    &self.medium,
+                    &source,
+                );
                 let mut sum = [0.0; LANES];
                 let mut sum2 = [0.0; LANES];
                 let mut discarded = [0u64; LANES];
