@@ -49,15 +49,11 @@ pub struct Sun {
     pub spectrum: Option<std::path::PathBuf>,
     /// Whether the disc is limb-darkened (Neckel & Labs 1994,
     /// [`crate::physics::sun::NECKEL_LABS_1994`]) rather than uniform; the
-    /// disc's irradiance is the same either way.
-    #[serde(skip_serializing_if = "is_true")]
+    /// disc's irradiance is the same either way. Off by default: the
+    /// sun's next-event samples are weighted by the darkened radiance, which
+    /// raised the sunset sky's noise 1.18× (`BENCHMARKS.md`).
+    #[serde(skip_serializing_if = "std::ops::Not::not")]
     pub limb_darkening: bool,
-}
-
-/// Whether `value` is true (serde's `skip_serializing_if` passes a reference).
-#[allow(clippy::trivially_copy_pass_by_ref)]
-fn is_true(value: &bool) -> bool {
-    *value
 }
 
 impl Default for Sun {
@@ -70,7 +66,7 @@ impl Default for Sun {
             longitude_deg: None,
             distance_au: None,
             spectrum: None,
-            limb_darkening: true,
+            limb_darkening: false,
         }
     }
 }

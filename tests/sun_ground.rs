@@ -209,7 +209,10 @@ fn bad_spectrum_files_are_refused_with_nothing_written() {
 fn the_disc_near_its_limb_is_darkened_by_the_published_law() {
     use skyrender::render::direction_from_az_el;
     use skyrender::render::probe::ProbeLight;
-    let scene = Scene::from_toml("[sun]\nelevation_deg = 60.0\nazimuth_deg = 180.0\n").unwrap();
+    let scene = Scene::from_toml(
+        "[sun]\nelevation_deg = 60.0\nazimuth_deg = 180.0\nlimb_darkening = true\n",
+    )
+    .unwrap();
     let renderer = Renderer::new(&scene).unwrap();
     let alpha_deg = sun::ANGULAR_RADIUS_DEG;
     // An azimuth step of 0.9 α / cos(elevation) is 0.9 α across the sky.
@@ -252,6 +255,7 @@ fn a_zoomed_render_shows_the_limb_darker_and_redder() {
     let (size, fov_deg) = (64usize, 1.0_f64);
     let out = skyrender(&[
         "render",
+        "--limb-darkening",
         "--sun-elevation",
         "60",
         "--sun-azimuth",

@@ -283,10 +283,10 @@ pub struct SceneArgs {
     /// `wavelength_nm,irradiance` in W m⁻² nm⁻¹ [default: ASTM E-490].
     #[arg(long, value_name = "FILE")]
     pub sun_spectrum: Option<std::path::PathBuf>,
-    /// A uniform solar disc instead of the limb-darkened one (Neckel &
-    /// Labs 1994).
+    /// A limb-darkened solar disc (Neckel & Labs 1994) instead of the
+    /// uniform one [default: uniform].
     #[arg(long)]
-    pub no_limb_darkening: bool,
+    pub limb_darkening: bool,
     /// PNG exposure, EV, -50 to 50: a luminance of L cd/m² is shown as
     /// L × 2^EV before the tone curve [default: automatic].
     #[arg(long, allow_negative_numbers = true, value_name = "EV")]
@@ -440,8 +440,8 @@ impl SceneArgs {
         if let Some(v) = &self.sun_spectrum {
             scene.sun.spectrum = Some(v.clone());
         }
-        if self.no_limb_darkening {
-            scene.sun.limb_darkening = false;
+        if self.limb_darkening {
+            scene.sun.limb_darkening = true;
         }
         if let Some(v) = self.exposure {
             scene.render.exposure_ev = Some(v);
