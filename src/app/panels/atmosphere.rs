@@ -1,7 +1,9 @@
-//! The Atmosphere section: aerosols, ozone and the ground's albedo.
+//! The Atmosphere section: the planet, aerosols, ozone and the ground's
+//! albedo.
 
 use super::slider;
 use crate::app::state::{AppState, AEROSOL_AMOUNT_RANGE, OZONE_DU_RANGE};
+use crate::physics::planet::Planet;
 
 /// The Atmosphere section.
 pub struct AtmospherePanel<'a> {
@@ -15,6 +17,24 @@ impl AtmospherePanel<'_> {
         egui::CollapsingHeader::new("Atmosphere")
             .default_open(true)
             .show(ui, |ui| {
+                let planet = self.state.planet();
+                egui::ComboBox::from_label("Planet")
+                    .selected_text(planet.name())
+                    .show_ui(ui, |ui| {
+                        for p in Planet::ALL {
+                            if ui.selectable_label(p == planet, p.name()).clicked() {
+                                self.state.set_planet(p);
+                            }
+                        }
+                    })
+                    .response
+                    .on_hover_text(
+                        "The planet's own atmosphere: Mars has CO₂ air, dust and no ozone, \
+                         and the Sun at 1.52 AU (choosing one replaces the atmosphere)",
+                    );
+                // The amount slider multiplies Elterman's Earth profile, and
+                // the ozone profile is the Earth's: both belong to the Earth.
+                let earth = self.state.planet() == Planet::Earth;
                 let a = self.state.atmosphere().clone();
                 let mut aerosols = a.aerosols;
                 if ui
@@ -27,7 +47,7 @@ impl AtmospherePanel<'_> {
                 {
                     self.state.set_aerosols(aerosols);
                 }
-                ui.add_enabled_ui(aerosols, |ui| {
+                ui.add_enabled_ui(aerosols && earth, |ui| {
                     if let Some(v) = slider(
                         ui,
                         a.aerosol_amount,
@@ -41,7 +61,7 @@ impl AtmospherePanel<'_> {
                 });
                 let mut ozone = a.ozone;
                 if ui
-                    .checkbox(&mut ozone, "Ozone")
+                    .add_enabled(earth, egui::Checkbox::new(&mut ozone, "Ozone"))
                     .on_hover_text(
                         "Ozone absorption (Chappuis band): keeps the twilight zenith blue",
                     )
@@ -49,7 +69,7 @@ impl AtmospherePanel<'_> {
                 {
                     self.state.set_ozone(ozone);
                 }
-                ui.add_enabled_ui(ozone, |ui| {
+                ui.add_enabled_ui(ozone && earth, |ui| {
                     ui.horizontal(|ui| {
                         if let Some(v) = slider(
                             ui,
