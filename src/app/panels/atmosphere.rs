@@ -17,36 +17,41 @@ impl AtmospherePanel<'_> {
         egui::CollapsingHeader::new("Atmosphere")
             .default_open(true)
             .show(ui, |ui| {
-                let planet = self.state.planet();
-                egui::ComboBox::from_label("Planet")
-                    .selected_text(planet.name())
-                    .show_ui(ui, |ui| {
-                        for p in Planet::ALL {
-                            if ui.selectable_label(p == planet, p.name()).clicked() {
-                                self.state.set_planet(p);
-                            }
-                        }
-                    })
-                    .response
-                    .on_hover_text(
-                        "The planet's own atmosphere: Mars has CO₂ air, dust and no ozone, \
-                         and the Sun at 1.52 AU (choosing one replaces the atmosphere)",
-                    );
                 // The amount slider multiplies Elterman's Earth profile, and
                 // the ozone profile is the Earth's: both belong to the Earth.
                 let earth = self.state.planet() == Planet::Earth;
                 let a = self.state.atmosphere().clone();
                 let mut aerosols = a.aerosols;
-                if ui
-                    .checkbox(&mut aerosols, "Aerosols")
-                    .on_hover_text(
-                        "Haze particles (Elterman's profile): whiter sky near the horizon, \
-                 glow around the sun",
-                    )
-                    .changed()
-                {
-                    self.state.set_aerosols(aerosols);
-                }
+                // The planet shares the aerosols' row: the side panel's
+                // height is spoken for (the export buttons stay in view at
+                // the default window size).
+                ui.horizontal(|ui| {
+                    if ui
+                        .checkbox(&mut aerosols, "Aerosols")
+                        .on_hover_text(
+                            "Haze particles (Elterman's profile; Mars: dust): whiter sky \
+                             near the horizon, glow around the sun",
+                        )
+                        .changed()
+                    {
+                        self.state.set_aerosols(aerosols);
+                    }
+                    let planet = self.state.planet();
+                    egui::ComboBox::from_label("Planet")
+                        .selected_text(planet.name())
+                        .show_ui(ui, |ui| {
+                            for p in Planet::ALL {
+                                if ui.selectable_label(p == planet, p.name()).clicked() {
+                                    self.state.set_planet(p);
+                                }
+                            }
+                        })
+                        .response
+                        .on_hover_text(
+                            "The planet's own atmosphere: Mars has CO₂ air, dust and no ozone, \
+                             and the Sun at 1.52 AU (choosing one replaces the atmosphere)",
+                        );
+                });
                 ui.add_enabled_ui(aerosols && earth, |ui| {
                     if let Some(v) = slider(
                         ui,
