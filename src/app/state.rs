@@ -886,6 +886,7 @@ mod tests {
             assert!(state.load_preset(name), "{name}");
             assert!(state.take_dirty());
         }
+        assert!(state.load_preset("airliner"));
         assert_eq!(state.scene().observer.altitude_m, 10_000.0);
         assert!(!state.load_preset("nowhere"));
         assert!(state.last_error.as_deref().unwrap_or("").contains("midday"));
