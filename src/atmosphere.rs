@@ -3,13 +3,17 @@
 //! wavelength.
 
 use std::path::PathBuf;
+use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
 use crate::physics::phase_table::PhaseTable;
+use crate::physics::planet::Planet;
+use crate::physics::profile::VerticalProfile;
+use crate::physics::rayleigh::Gas;
 use crate::physics::spectrum_file::{self, Quantity, Tabulated};
 use crate::physics::{
-    aerosol, ozone, rayleigh, standard_atmosphere, DEFAULT_ATMOSPHERE_TOP_M, DOBSON_UNIT_PER_M2,
+    aerosol, ozone, standard_atmosphere, DEFAULT_ATMOSPHERE_TOP_M, DOBSON_UNIT_PER_M2,
     EARTH_RADIUS_M,
 };
 use crate::scene::SceneError;
@@ -47,6 +51,16 @@ pub struct AtmosphereParams {
     /// key given takes the place of the flat key above it stands for.
     #[serde(skip_serializing_if = "AerosolOptics::is_unset")]
     pub aerosol: AerosolOptics,
+    /// The gas's vertical profile from a CSV file
+    /// ([`crate::physics::profile`]) in place of the planet's own (the
+    /// U.S. Standard Atmosphere on Earth); a relative path is taken from
+    /// the scene file's folder.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub profile: Option<PathBuf>,
+    /// The planet (the scene's `[planet] preset`, copied here by
+    /// [`crate::scene::Scene`]): its gas and its own profile.
+    #[serde(skip)]
+    pub planet: Planet,
 }
 
 impl Default for AtmosphereParams {
@@ -64,7 +78,76 @@ impl Default for AtmosphereParams {
             aerosol_albedo: 0.9,
             aerosol_phase: aerosol::PhaseModel::HenyeyGreenstein,
             aerosol: AerosolOptics::default(),
+            profile: None,
+            planet: Planet::Earth,
         }
+    }
+}
+
+impl AtmosphereParams {
+    /// The atmosphere of `planet` with its own defaults: Earth's are
+    /// [`Self::default`]; Mars's its radius, its top, CO₂ without ozone,
+    /// its ground albedo and its dust ([`crate::physics::planet`]).
+    pub fn for_planet(planet: Planet) -> Self {
+        use crate::physics::planet::{mars_dust, MARS_GROUND_ALBEDO};
+        match planet {
+            Planet::Earth => Self::default(),
+            Planet::Mars => Self {
+                planet_radius_m: planet.radius_m(),
+                top_altitude_m: planet.atmosphere_top_m(),
+                ground_albedo: MARS_GROUND_ALBEDO,
+                ozone: false,
+                aerosol: AerosolOptics {
+                    optical_depth_550: Some(mars_dust::OPTICAL_DEPTH_550),
+                    angstrom_exponent: Some(mars_dust::ANGSTROM_EXPONENT),
+                    single_scattering_albedo: Some(AlbedoSpectrum::Spectrum(
+                        mars_dust::SINGLE_SCATTERING_ALBEDO.to_vec(),
+                    )),
+                    profile: Some(AerosolProfileKind::Exponential),
+                    scale_height_m: Some(mars_dust::SCALE_HEIGHT_M),
+                    phase: Some(AerosolPhaseKind::DoubleHenyeyGreenstein),
+                    g1: Some(mars_dust::G1),
+                    g2: Some(mars_dust::G2),
+                    weight: Some(mars_dust::WEIGHT),
+                    ..AerosolOptics::default()
+                },
+                planet,
+                ..Self::default()
+            },
+        }
+    }
+
+    /// The gas profile this atmosphere uses: the `profile` file's (read
+    /// once per process), else the planet's own; `None`: the U.S. Standard
+    /// Atmosphere. The error names the file, the line and the valid form.
+    pub fn gas_profile(&self) -> Result<Option<Arc<VerticalProfile>>, SceneError> {
+        match &self.profile {
+            Some(path) => VerticalProfile::cached(path)
+                .map(Some)
+                .map_err(|e| SceneError::new("atmosphere.profile", e)),
+            None => Ok(self.planet.profile().map(|p| Arc::new(p.clone()))),
+        }
+    }
+
+    /// Checks the profile file, if any, and that `ozone_du` has an ozone
+    /// profile to scale.
+    pub fn validate_profile(&self) -> Result<(), SceneError> {
+        let profile = self.gas_profile()?;
+        if self.ozone {
+            if let Some(p) = &profile {
+                if !p.has_ozone() && self.planet != Planet::Earth {
+                    return Err(SceneError::new(
+                        "ozone",
+                        format!(
+                            "{} has no ozone profile: set ozone = false, or give a profile \
+                             file with an ozone_m3 or ozone_vmr column",
+                            self.planet.name()
+                        ),
+                    ));
+                }
+            }
+        }
+        Ok(())
     }
 }
 
@@ -664,6 +747,8 @@ pub struct Atmosphere {
     ozone_scale: f64,
     /// The aerosol extinction's profile and spectrum.
     aerosol: AerosolColumn,
+    /// The gas profile; `None`: the U.S. Standard Atmosphere.
+    profile: Option<Arc<VerticalProfile>>,
 }
 
 /// Vertical optical depths from some altitude to the top of the atmosphere.
@@ -675,18 +760,74 @@ pub struct OpticalDepth {
 }
 
 impl Atmosphere {
+    /// The atmosphere of validated `params` (a profile file that cannot be
+    /// read is a programming error here: [`crate::scene::Scene::validate`]
+    /// reads it first, and it is read once per process).
     pub fn new(params: AtmosphereParams) -> Self {
-        let own_du = ozone::Profile::get().column_du(params.top_altitude_m);
-        let ozone_scale = match (params.ozone, params.ozone_du) {
-            (false, _) => 0.0,
-            (true, None) => 1.0,
-            (true, Some(du)) => du / own_du,
-        };
-        Self {
+        let profile = params
+            .gas_profile()
+            .expect("a validated scene's profile (Scene::validate reads it)");
+        let mut atmosphere = Self {
             aerosol: params.aerosol_column(),
             params,
-            ozone_scale,
+            ozone_scale: 1.0,
+            profile,
+        };
+        atmosphere.ozone_scale = match (atmosphere.params.ozone, atmosphere.params.ozone_du) {
+            (false, _) => 0.0,
+            (true, None) => 1.0,
+            (true, Some(du)) => du / atmosphere.base_ozone_column_du(),
+        };
+        atmosphere
+    }
+
+    /// Whether the gas comes from a profile (a file's or the planet's)
+    /// rather than the U.S. Standard Atmosphere.
+    pub fn has_gas_profile(&self) -> bool {
+        self.profile.is_some()
+    }
+
+    /// The scattering gas.
+    pub fn gas(&self) -> Gas {
+        self.params.planet.gas()
+    }
+
+    /// The unscaled ozone profile: the profile file's ozone column if it has
+    /// one, else the AFGL profile, m⁻³.
+    fn base_ozone_m3(&self, altitude_m: f64) -> f64 {
+        match self.profile.as_ref().and_then(|p| p.ozone_m3(altitude_m)) {
+            Some(n) => n,
+            None => ozone::Profile::get().number_density_m3(altitude_m),
         }
+    }
+
+    /// Column of [`Self::base_ozone_m3`] from the ground to the top, DU.
+    fn base_ozone_column_du(&self) -> f64 {
+        let top = self.params.top_altitude_m;
+        match &self.profile {
+            Some(p) if p.has_ozone() => {
+                let mut column = 0.0;
+                let mut lo = 0.0;
+                while lo < top {
+                    let hi = (lo + 500.0).min(top);
+                    for (z, w) in crate::physics::quadrature::simpson(lo, hi, 50) {
+                        column += w * self.base_ozone_m3(z);
+                    }
+                    lo = hi;
+                }
+                column / DOBSON_UNIT_PER_M2
+            }
+            _ => ozone::Profile::get().column_du(top),
+        }
+    }
+
+    /// Temperature at `altitude_m`, K: the profile's where it gives one,
+    /// else the U.S. Standard Atmosphere's.
+    pub fn temperature_k(&self, altitude_m: f64) -> f64 {
+        self.profile
+            .as_ref()
+            .and_then(|p| p.temperature_k(altitude_m))
+            .unwrap_or_else(|| standard_atmosphere::air_state(altitude_m).temperature_k)
     }
 
     /// Radius of the top of the atmosphere, m.
@@ -698,20 +839,23 @@ impl Atmosphere {
         altitude_m <= self.params.top_altitude_m
     }
 
-    /// Number density of air, m⁻³ (U.S. Standard Atmosphere 1976; zero above
-    /// the top of the model atmosphere).
+    /// Number density of the gas, m⁻³: the profile's, else the U.S.
+    /// Standard Atmosphere 1976's; zero above the top of the model
+    /// atmosphere.
     pub fn air_number_density_m3(&self, altitude_m: f64) -> f64 {
-        if self.inside(altitude_m) {
-            standard_atmosphere::air_state(altitude_m).number_density_m3
-        } else {
-            0.0
+        if !self.inside(altitude_m) {
+            return 0.0;
+        }
+        match &self.profile {
+            Some(p) => p.number_density_m3(altitude_m),
+            None => standard_atmosphere::air_state(altitude_m).number_density_m3,
         }
     }
 
     /// Ozone number density, m⁻³, scaled to the requested column.
     pub fn ozone_number_density_m3(&self, altitude_m: f64) -> f64 {
-        if self.inside(altitude_m) {
-            self.ozone_scale * ozone::Profile::get().number_density_m3(altitude_m)
+        if self.inside(altitude_m) && self.ozone_scale != 0.0 {
+            self.ozone_scale * self.base_ozone_m3(altitude_m)
         } else {
             0.0
         }
@@ -736,17 +880,17 @@ impl Atmosphere {
 
     /// Rayleigh scattering coefficient, m⁻¹.
     pub fn rayleigh_scattering_per_m(&self, altitude_m: f64, wavelength_nm: f64) -> f64 {
-        rayleigh::cross_section_m2(wavelength_nm) * self.air_number_density_m3(altitude_m)
+        self.gas().cross_section_m2(wavelength_nm) * self.air_number_density_m3(altitude_m)
     }
 
     /// Ozone absorption coefficient, m⁻¹, with the cross-section taken at the
-    /// local temperature of the standard atmosphere.
+    /// local temperature ([`Self::temperature_k`]).
     pub fn ozone_absorption_per_m(&self, altitude_m: f64, wavelength_nm: f64) -> f64 {
         let n = self.ozone_number_density_m3(altitude_m);
         if n == 0.0 {
             return 0.0;
         }
-        let t = standard_atmosphere::air_state(altitude_m).temperature_k;
+        let t = self.temperature_k(altitude_m);
         n * ozone::CrossSections::get().cross_section_m2(wavelength_nm, t)
     }
 
@@ -758,8 +902,7 @@ impl Atmosphere {
 
     /// Total ozone column of this atmosphere, Dobson units.
     pub fn ozone_column_du(&self) -> f64 {
-        self.ozone_scale * ozone::Profile::get().column_m2(0.0, self.params.top_altitude_m)
-            / DOBSON_UNIT_PER_M2
+        self.ozone_scale * self.base_ozone_column_du()
     }
 
     /// Vertical optical depths from `altitude_m` to the top, by Simpson's rule

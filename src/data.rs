@@ -61,6 +61,9 @@ pub const OZONE_PROFILE: &str = include_str!("../data/ozone_profile.csv");
 pub const ELTERMAN_AEROSOL: &str = include_str!("../data/elterman1968_aerosol.csv");
 /// Elterman (1968) total attenuation at 22 wavelengths.
 pub const ELTERMAN_TOTAL: &str = include_str!("../data/elterman1968_total_attenuation.csv");
+/// Mars temperature and pressure against altitude: the Mars-GRAM 2005
+/// auxiliary profile of Justus, Duvall & Keller (2005), Table 1.
+pub const MARS_PROFILE: &str = include_str!("../data/mars_tes_phoenix_justus2005.csv");
 
 /// Lawn grass GDS91 (green), USGS Spectral Library 7, 360–830 nm / 5 nm.
 pub const GROUND_GRASS: &str = include_str!("../data/ground_grass.csv");

@@ -7,6 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::atmosphere::AtmosphereParams;
+use crate::physics::planet::Planet;
 use crate::physics::solar_position::{self, SunPlacement};
 use crate::render::IntegratorOptions;
 use crate::spectrum::Observer;
@@ -36,9 +37,10 @@ pub struct Sun {
     /// Observer's longitude, degrees east (−180 to 180).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub longitude_deg: Option<f64>,
-    /// Earth–Sun distance, AU, scaling the solar irradiance by 1/d²; unset:
-    /// the date's distance where `date_time` is given, else 1 AU (the
-    /// solar spectrum's own distance).
+    /// The Sun's distance from the planet, AU, scaling the solar
+    /// irradiance by 1/d²; unset: the date's distance where `date_time` is
+    /// given, else 1 AU (the solar spectrum's own distance; a planet other
+    /// than the Earth sets its own, [`Scene::set_planet`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub distance_au: Option<f64>,
     /// The Sun's spectral irradiance at 1 AU, a CSV file
@@ -230,6 +232,97 @@ pub struct Scene {
     /// What an EXR holds besides the RGB image (`[output]`).
     #[serde(skip_serializing_if = "OutputParams::is_plain")]
     pub output: OutputParams,
+    /// The planet (`[planet]`); unset: the Earth.
+    #[serde(skip_serializing_if = "PlanetParams::is_earth")]
+    pub planet: PlanetParams,
+}
+
+/// The planet under the scene (`[planet]`): its radius, the top of its
+/// atmosphere, its gas and profile, its aerosol and the Sun's distance
+/// ([`crate::physics::planet`]) are the defaults of the scene's keys that
+/// set them (`[atmosphere]`, `[atmosphere.aerosol]`, `[sun] distance_au`),
+/// which override them.
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(default, deny_unknown_fields)]
+pub struct PlanetParams {
+    /// Which planet: `earth` or `mars`.
+    pub preset: Planet,
+}
+
+impl PlanetParams {
+    /// Whether the planet is the Earth (the table is then left out of a
+    /// written scene).
+    pub fn is_earth(&self) -> bool {
+        self.preset == Planet::Earth
+    }
+}
+
+/// The keys of `[atmosphere.aerosol]` in groups set together: a planet's
+/// default for one of them is not used where the scene sets any key of its
+/// group (or a flat `[atmosphere]` key that the group replaces).
+const AEROSOL_KEY_GROUPS: [(&[&str], &[&str]); 5] = [
+    (
+        &["phase", "asymmetry", "g1", "g2", "weight", "phase_file"],
+        &["aerosol_phase", "aerosol_g"],
+    ),
+    (&["profile", "scale_height_m"], &[]),
+    (&["optical_depth_550"], &["aerosol_amount"]),
+    (&["single_scattering_albedo"], &["aerosol_albedo"]),
+    (&["angstrom_exponent"], &[]),
+];
+
+/// `table` (a scene's TOML) with the defaults of `planet` filled in where
+/// it leaves them unset: the atmosphere's keys (with the aerosol's in their
+/// groups, [`AEROSOL_KEY_GROUPS`]) and the Sun's distance.
+fn with_planet_defaults(mut table: toml::Table, planet: Planet) -> toml::Table {
+    let defaults = toml::Table::try_from(AtmosphereParams::for_planet(planet))
+        .expect("an atmosphere serialises");
+    let atmosphere = table
+        .entry("atmosphere")
+        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+    if let toml::Value::Table(atmosphere) = atmosphere {
+        // The scene's own flat keys, before the defaults join them.
+        let flat: Vec<String> = atmosphere.keys().cloned().collect();
+        for (key, value) in &defaults {
+            if key == "aerosol" {
+                continue;
+            }
+            atmosphere
+                .entry(key.clone())
+                .or_insert_with(|| value.clone());
+        }
+        if let Some(toml::Value::Table(dust)) = defaults.get("aerosol") {
+            let aerosol = atmosphere
+                .entry("aerosol")
+                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+            if let toml::Value::Table(aerosol) = aerosol {
+                for (keys, flat_keys) in AEROSOL_KEY_GROUPS {
+                    let set = keys.iter().any(|k| aerosol.contains_key(*k))
+                        || flat_keys.iter().any(|k| flat.iter().any(|f| f == k));
+                    if set {
+                        continue;
+                    }
+                    for key in keys {
+                        if let Some(value) = dust.get(*key) {
+                            aerosol.insert((*key).to_owned(), value.clone());
+                        }
+                    }
+                }
+            }
+        }
+    }
+    if let Some(distance_au) = planet.sun_distance_au() {
+        let sun = table
+            .entry("sun")
+            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
+        if let toml::Value::Table(sun) = sun {
+            if !sun.contains_key("date_time") {
+                sun.entry("distance_au")
+                    .or_insert(toml::Value::Float(distance_au));
+            }
+        }
+    }
+    table
 }
 
 /// What a render's EXR holds besides its RGB image: compositing layers and
@@ -417,7 +510,7 @@ pub fn show_number(value: f64) -> String {
 }
 
 /// Built-in presets, shipped as TOML in `assets/presets/`.
-pub const PRESETS: [(&str, &str); 6] = [
+pub const PRESETS: [(&str, &str); 8] = [
     ("midday", include_str!("../assets/presets/midday.toml")),
     (
         "afternoon",
@@ -427,6 +520,14 @@ pub const PRESETS: [(&str, &str); 6] = [
     ("twilight", include_str!("../assets/presets/twilight.toml")),
     ("space", include_str!("../assets/presets/space.toml")),
     ("airliner", include_str!("../assets/presets/airliner.toml")),
+    (
+        "mars-noon",
+        include_str!("../assets/presets/mars-noon.toml"),
+    ),
+    (
+        "mars-sunset",
+        include_str!("../assets/presets/mars-sunset.toml"),
+    ),
 ];
 
 impl Scene {
@@ -466,12 +567,26 @@ impl Scene {
         // From the text again, not from `table`: only then do serde's errors
         // (unknown fields, wrong types) keep their line and column.
         let mut scene: Self = toml::from_str(text).map_err(|e| toml_error(text, &e))?;
+        if scene.planet.preset != Planet::Earth {
+            // The planet's defaults where the file is silent (the file's
+            // own keys have passed the check above, with their lines).
+            scene = toml::Value::Table(with_planet_defaults(table, scene.planet.preset))
+                .try_into()
+                .map_err(|e: toml::de::Error| SceneError::new("planet", e.message()))?;
+        }
+        scene.atmosphere.planet = scene.planet.preset;
         if fisheye_without_fov {
             scene.camera.fov_deg = CameraKind::Fisheye.default_fov_deg();
         }
-        if let (Some(base), Some(file)) = (base, &mut scene.atmosphere.aerosol.phase_file) {
-            if file.is_relative() {
-                *file = base.join(&*file);
+        if let Some(base) = base {
+            let files = [
+                scene.atmosphere.aerosol.phase_file.as_mut(),
+                scene.atmosphere.profile.as_mut(),
+            ];
+            for file in files.into_iter().flatten() {
+                if file.is_relative() {
+                    *file = base.join(&*file);
+                }
             }
         }
         if let Some(base) = base {
@@ -485,6 +600,19 @@ impl Scene {
         scene.place_sun()?;
         scene.validate()?;
         Ok(scene)
+    }
+
+    /// Puts the scene on `planet`: its atmosphere becomes the planet's own
+    /// ([`AtmosphereParams::for_planet`]) and the Sun its distance (a date
+    /// and time, which place the Sun from the Earth, are dropped for
+    /// another planet). Everything else stays.
+    pub fn set_planet(&mut self, planet: Planet) {
+        self.planet.preset = planet;
+        self.atmosphere = AtmosphereParams::for_planet(planet);
+        self.sun.distance_au = planet.sun_distance_au();
+        if planet != Planet::Earth {
+            self.sun.date_time = None;
+        }
     }
 
     /// The Sun for the scene's date, time and place, if it has them.
@@ -604,6 +732,22 @@ impl Scene {
             // Mercury's perihelion (0.307 AU) to beyond Pluto's aphelion.
             check_range("sun distance (AU)", d, 0.3, 50.0)?;
         }
+        if self.sun.date_time.is_some() && self.planet.preset != Planet::Earth {
+            return Err(SceneError::new(
+                "sun date_time",
+                format!(
+                    "places the Sun by the Earth's ephemeris (NREL's SPA), not from {}: \
+                     give elevation_deg and azimuth_deg",
+                    self.planet.preset.name()
+                ),
+            ));
+        }
+        if self.atmosphere.planet != self.planet.preset {
+            return Err(SceneError::new(
+                "planet",
+                "the atmosphere belongs to another planet (set the planet with Scene::set_planet)",
+            ));
+        }
         if let Some(v) = self.sun.latitude_deg {
             check_range("latitude (deg)", v, -90.0, 90.0)?;
         }
@@ -636,6 +780,7 @@ impl Scene {
             check_range("ozone column (DU)", du, 0.0, 2_000.0)?;
         }
         a.validate_aerosol()?;
+        a.validate_profile()?;
         let r = &self.render;
         if r.width == 0 || r.width > 65_536 {
             return Err(SceneError::new(
@@ -746,6 +891,50 @@ mod tests {
             let again = Scene::from_toml(&scene.to_toml()).unwrap();
             assert_eq!(scene, again, "{name}");
         }
+    }
+
+    #[test]
+    fn a_planet_sets_the_defaults_the_scene_overrides() {
+        use crate::atmosphere::AerosolPhaseKind;
+        use crate::physics::planet::{MARS_DISTANCE_AU, MARS_RADIUS_M};
+        let mars = Scene::from_toml("[planet]\npreset = \"mars\"\n").unwrap();
+        assert_eq!(mars.atmosphere, AtmosphereParams::for_planet(Planet::Mars));
+        assert_eq!(mars.atmosphere.planet_radius_m, MARS_RADIUS_M);
+        assert_eq!(mars.sun.distance_au, Some(MARS_DISTANCE_AU));
+        // The scene's keys win; the dust's other keys stay.
+        let own = Scene::from_toml(
+            "[planet]\npreset = \"mars\"\n[sun]\ndistance_au = 1.38\n\
+             [atmosphere]\nplanet_radius_m = 3396200.0\n\
+             [atmosphere.aerosol]\noptical_depth_550 = 2.0\n",
+        )
+        .unwrap();
+        assert_eq!(own.sun.distance_au, Some(1.38));
+        assert_eq!(own.atmosphere.planet_radius_m, 3_396_200.0);
+        assert_eq!(own.atmosphere.aerosol.optical_depth_550, Some(2.0));
+        assert_eq!(
+            own.atmosphere.aerosol.phase,
+            Some(AerosolPhaseKind::DoubleHenyeyGreenstein)
+        );
+        // A phase of the scene's own takes none of the dust's parameters.
+        let hg = Scene::from_toml(
+            "[planet]\npreset = \"mars\"\n[atmosphere.aerosol]\n\
+             phase = \"henyey-greenstein\"\nasymmetry = 0.6\n",
+        )
+        .unwrap();
+        assert_eq!(hg.atmosphere.aerosol.g1, None);
+        // Round trip, and the Earth's scenes write no [planet].
+        assert_eq!(Scene::from_toml(&own.to_toml()).unwrap(), own);
+        assert!(!Scene::default().to_toml().contains("[planet]"));
+        // The Earth's ephemeris does not place the Sun on Mars.
+        let dated = Scene::from_toml(
+            "[planet]\npreset = \"mars\"\n[sun]\ndate_time = \"2013-05-27T11:45:00-04:00\"\n\
+             latitude_deg = 42.0\nlongitude_deg = -76.0\n",
+        )
+        .unwrap_err();
+        assert!(dated.message.contains("Earth's ephemeris"), "{dated:?}");
+        let mut scene = Scene::default();
+        scene.set_planet(Planet::Mars);
+        assert_eq!(scene, mars);
     }
 
     #[test]

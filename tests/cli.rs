@@ -367,7 +367,15 @@ fn atmosphere_json_reports_the_standard_and_optical_depths() {
 fn presets_are_listed() {
     let out = skyrender(&["presets"]);
     let text = String::from_utf8_lossy(&out.stdout);
-    for name in ["midday", "afternoon", "sunset", "twilight", "space"] {
+    for name in [
+        "midday",
+        "afternoon",
+        "sunset",
+        "twilight",
+        "space",
+        "mars-noon",
+        "mars-sunset",
+    ] {
         assert!(text.contains(name), "{text}");
     }
 }

@@ -1,5 +1,6 @@
 //! Analytic limits and statistical agreement of the path tracer.
 
+use std::fmt::Write as _;
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -287,12 +288,43 @@ fn white_ground_conserves_energy(ground: AtmosphereParams) {
     // of the cosine-weighted views (those within the 10° horizon dip at
     // 100 km) see only the limb. A planet of 10⁶ km radius is plane-parallel
     // to 2 × 10⁻⁴ while exercising the same spherical code.
-    let atmosphere = Atmosphere::new(AtmosphereParams {
+    white_ground_energy(AtmosphereParams {
         ozone: false,
         aerosol_albedo: 1.0,
         planet_radius_m: 1e9,
         ..ground
     });
+}
+
+#[test]
+fn white_ground_without_absorption_conserves_energy_on_a_custom_profile() {
+    // As above, with the gas from a profile file: a warm, dense layer
+    // (twice the standard atmosphere's density at the ground, 5 km scale
+    // height, cut off at 60 km) that the renderer reads log-linearly.
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("dense.csv");
+    let mut text = String::from("altitude_m,temperature_k,pressure_pa\n");
+    for km in (0..=60).step_by(3) {
+        let z = f64::from(km) * 1000.0;
+        let n = 2.0 * 2.547e25 * (-z / 5000.0).exp();
+        let t = 300.0 - 1.5 * f64::from(km);
+        writeln!(text, "{z},{t},{}", n * 1.380_649e-23 * t).unwrap();
+    }
+    std::fs::write(&file, text).unwrap();
+    white_ground_energy(AtmosphereParams {
+        ozone: false,
+        aerosol_albedo: 1.0,
+        ground_albedo: 1.0,
+        planet_radius_m: 1e9,
+        profile: Some(file),
+        ..AtmosphereParams::default()
+    });
+}
+
+/// The energy check above for `params` (no absorber, a white ground, a
+/// plane-parallel planet).
+fn white_ground_energy(params: AtmosphereParams) {
+    let atmosphere = Atmosphere::new(params);
     let medium = Medium::new(&atmosphere);
     let options = IntegratorOptions::default();
     let mu0 = 0.6_f64;

@@ -238,6 +238,31 @@ impl AppState {
         true
     }
 
+    /// The scene's planet.
+    pub fn planet(&self) -> crate::physics::planet::Planet {
+        self.scene.planet.preset
+    }
+
+    /// Put the scene on `planet` ([`Scene::set_planet`]: its atmosphere
+    /// becomes the planet's own, the Sun its distance; a date and place
+    /// give way to manual mode off the Earth).
+    pub fn set_planet(&mut self, planet: crate::physics::planet::Planet) {
+        if self.scene.planet.preset == planet {
+            return;
+        }
+        let mut scene = self.scene.clone();
+        scene.set_planet(planet);
+        if scene.sun.date_time.is_none() {
+            self.sun_mode = SunMode::Manual;
+        }
+        let mut params = scene.atmosphere.clone();
+        params.ozone = true;
+        params.ozone_du = None;
+        self.profile_ozone_du = Atmosphere::new(params).ozone_column_du();
+        self.scene = scene;
+        self.dirty = true;
+    }
+
     /// Load a built-in preset by name.
     pub fn load_preset(&mut self, name: &str) -> bool {
         match Scene::preset(name) {
@@ -764,6 +789,7 @@ mod tests {
             assert!(state.load_preset(name), "{name}");
             assert!(state.take_dirty());
         }
+        assert!(state.load_preset("airliner"));
         assert_eq!(state.scene().observer.altitude_m, 10_000.0);
         assert!(!state.load_preset("nowhere"));
         assert!(state.last_error.as_deref().unwrap_or("").contains("midday"));

@@ -56,9 +56,10 @@ pub struct BenchArgs {
     /// renders (default 10; 0.4 with --quick).
     #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
     pub budget: Option<f64>,
-    /// Comma-separated scenes: midday, sunset, twilight, space (256×128
-    /// equirect) and preview (the app's default preview) by default; any
-    /// other preset (afternoon, airliner) on request.
+    /// Comma-separated scenes: midday, sunset, twilight, space,
+    /// mars-noon, mars-sunset (256×128 equirect) and preview (the app's
+    /// default preview) by default; any other preset (afternoon, airliner)
+    /// on request.
     #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
     pub scenes: Option<Vec<String>>,
     /// Worker threads (default: all cores).
@@ -92,7 +93,15 @@ pub struct BenchArgs {
 }
 
 /// The scenes run when `--scenes` is not given.
-pub const DEFAULT_SCENES: [&str; 5] = ["midday", "sunset", "twilight", "space", "preview"];
+pub const DEFAULT_SCENES: [&str; 7] = [
+    "midday",
+    "sunset",
+    "twilight",
+    "space",
+    "preview",
+    "mars-noon",
+    "mars-sunset",
+];
 /// Name of the app's default preview scene.
 pub const PREVIEW: &str = "preview";
 /// Size of the fixed benchmark scenes (equirectangular).
@@ -804,7 +813,14 @@ mod tests {
 
     #[test]
     fn bench_scenes_are_the_specified_ones() {
-        for name in ["midday", "sunset", "twilight", "space"] {
+        for name in [
+            "midday",
+            "sunset",
+            "twilight",
+            "space",
+            "mars-noon",
+            "mars-sunset",
+        ] {
             let s = bench_scene(name).unwrap();
             assert_eq!(
                 (s.camera.kind, s.render.width, s.render.height),

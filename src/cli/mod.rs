@@ -176,6 +176,11 @@ pub struct SceneArgs {
     /// Scene description (TOML; see README "Scene files").
     #[arg(long, value_name = "FILE.toml")]
     pub scene: Option<PathBuf>,
+    /// Planet: earth or mars. Replaces the scene's atmosphere by the
+    /// planet's own (radius, gas, profile, dust) and the Sun's distance;
+    /// the other flags apply after it [default: the scene's, earth].
+    #[arg(long, value_name = "NAME")]
+    pub planet: Option<String>,
     /// Sun elevation above the horizon, degrees, -90 to 90 (negative:
     /// below it, twilight) [default: 45].
     #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
@@ -197,8 +202,8 @@ pub struct SceneArgs {
     /// [default: none].
     #[arg(long, allow_negative_numbers = true, value_name = "DEG")]
     pub lon: Option<f64>,
-    /// Earth–Sun distance, AU, 0.3 to 50: the solar irradiance scales as
-    /// 1/d² [default: the date's with --time, else 1].
+    /// The Sun's distance, AU, 0.3 to 50: the solar irradiance scales as
+    /// 1/d² [default: the date's with --time, else 1; 1.524 on Mars].
     #[arg(long, allow_negative_numbers = true, value_name = "AU")]
     pub sun_distance: Option<f64>,
     /// Observer altitude above the ground, metres, 0 to 1e8 [default: 2].
@@ -319,6 +324,11 @@ impl SceneArgs {
             (Some(name), None) => Scene::preset(name)?,
             (None, None) => Scene::preset("midday")?,
         };
+        if let Some(name) = &self.planet {
+            let planet = crate::physics::planet::Planet::parse(name)
+                .map_err(|e| SceneError::new("planet", e))?;
+            scene.set_planet(planet);
+        }
         if (self.sun_elevation.is_some() || self.sun_azimuth.is_some())
             && scene.sun.date_time.is_some()
             && self.time.is_none()
@@ -735,7 +745,20 @@ pub fn run(command: Command) -> Result<(), CliError> {
             let altitude_m = scene.observer.altitude_m;
             parse_wavelengths(Some(wavelength), None)?;
             let atmosphere = Atmosphere::new(scene.atmosphere.clone());
-            let air = standard_atmosphere::air_state(altitude_m);
+            let mut air = standard_atmosphere::air_state(altitude_m);
+            if atmosphere.has_gas_profile() {
+                // The profile's gas: n and T as the renderer takes them,
+                // p and ρ from them by the ideal gas law.
+                let n = atmosphere.air_number_density_m3(altitude_m);
+                let t = atmosphere.temperature_k(altitude_m);
+                air = standard_atmosphere::AirState {
+                    temperature_k: t,
+                    pressure_pa: n * crate::physics::profile::BOLTZMANN_J_PER_K * t,
+                    density_kg_m3: n * atmosphere.gas().molar_mass_kg_per_mol()
+                        / standard_atmosphere::AVOGADRO,
+                    number_density_m3: n,
+                };
+            }
             let depth = atmosphere.vertical_optical_depth(altitude_m, wavelength);
             let value = serde_json::json!({
                 "altitude_m": altitude_m,

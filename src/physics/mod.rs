@@ -7,6 +7,8 @@
 pub mod aerosol;
 pub mod ozone;
 pub mod phase_table;
+pub mod planet;
+pub mod profile;
 pub mod quadrature;
 pub mod rayleigh;
 pub mod solar_position;

@@ -454,6 +454,10 @@ impl IntegratorOptions {
     /// `atmosphere`.
     #[must_use]
     pub fn resolved(&self, sun_elevation_deg: f64, atmosphere: &AtmosphereParams) -> Self {
+        // The elevation thresholds were measured on the Earth's scenes. On
+        // another planet (Mars) they still choose among unbiased
+        // estimators: the expected image is the same, only the noise may be
+        // further from the least.
         let low_sun = sun_elevation_deg < LOW_SUN_ELEVATION_DEG;
         let high_sun = sun_elevation_deg > HIGH_SUN_ELEVATION_DEG;
         let control = self.control_variate.unwrap_or(

@@ -33,8 +33,9 @@ fn takes_table(estimator: TransmittanceEstimator, bounds: Bounds) -> bool {
 use std::sync::Arc;
 
 use crate::atmosphere::{AerosolSpectrum, AlbedoSpectrum, Atmosphere, GroundAlbedo};
+use crate::physics::rayleigh::Gas;
 use crate::physics::spectrum_file::Tabulated;
-use crate::physics::{aerosol, ozone, rayleigh, standard_atmosphere, sun};
+use crate::physics::{aerosol, ozone, sun};
 use crate::rng::Rng;
 
 /// Wavelengths carried by one path.
@@ -154,6 +155,8 @@ pub struct Medium {
     /// reference wavelength of the nodes' aerosol profile.
     aerosol_spectrum: AerosolSpectrum,
     ozone_on: bool,
+    /// The scattering gas (its Rayleigh cross-section and depolarisation).
+    gas: Gas,
     /// Column amounts toward the sun (a sampling aid; built on first use, so
     /// renders that do not sample sunlight do not pay for it).
     sun_columns: std::sync::OnceLock<super::sunlight::SunColumns>,
@@ -396,8 +399,8 @@ impl SolarSource {
 
 fn lane_constants(wavelength_nm: f64, medium: &Medium, source: &SolarSource) -> LaneConstants {
     let mut c = [0.0; OZONE_CONSTANTS + 11];
-    c[0] = rayleigh::cross_section_m2(wavelength_nm);
-    c[1] = rayleigh::phase_gamma(wavelength_nm);
+    c[0] = medium.gas.cross_section_m2(wavelength_nm);
+    c[1] = medium.gas.phase_gamma(wavelength_nm);
     c[2] = medium.aerosol_spectrum.factor(wavelength_nm);
     c[3] = source.irradiance_w_m2_nm(wavelength_nm);
     c[4] = medium.aerosol_albedo.at(wavelength_nm);
@@ -635,7 +638,7 @@ impl Medium {
                     air_m3: atmosphere.air_number_density_m3(z),
                     ozone_m3: atmosphere.ozone_number_density_m3(z),
                     aerosol_reference_per_m: atmosphere.aerosol_reference_extinction_per_m(z),
-                    temperature_k: standard_atmosphere::air_state(z).temperature_k,
+                    temperature_k: atmosphere.temperature_k(z),
                 }
             })
             .collect();
@@ -713,6 +716,7 @@ impl Medium {
                 .expect("a validated scene's phase function (Scene::validate builds it)"),
             aerosol_spectrum: p.aerosol_column().spectrum,
             ozone_on: p.ozone,
+            gas: atmosphere.gas(),
             sun_columns: std::sync::OnceLock::new(),
             column_table: std::sync::OnceLock::new(),
             profile_nodes,

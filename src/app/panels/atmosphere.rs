@@ -1,7 +1,9 @@
-//! The Atmosphere section: aerosols, ozone and the ground's albedo.
+//! The Atmosphere section: the planet, aerosols, ozone and the ground's
+//! albedo.
 
 use super::slider;
 use crate::app::state::{AppState, AEROSOL_AMOUNT_RANGE, OZONE_DU_RANGE};
+use crate::physics::planet::Planet;
 
 /// The Atmosphere section.
 pub struct AtmospherePanel<'a> {
@@ -15,19 +17,42 @@ impl AtmospherePanel<'_> {
         egui::CollapsingHeader::new("Atmosphere")
             .default_open(true)
             .show(ui, |ui| {
+                // The amount slider multiplies Elterman's Earth profile, and
+                // the ozone profile is the Earth's: both belong to the Earth.
+                let earth = self.state.planet() == Planet::Earth;
                 let a = self.state.atmosphere().clone();
                 let mut aerosols = a.aerosols;
-                if ui
-                    .checkbox(&mut aerosols, "Aerosols")
-                    .on_hover_text(
-                        "Haze particles (Elterman's profile): whiter sky near the horizon, \
-                 glow around the sun",
-                    )
-                    .changed()
-                {
-                    self.state.set_aerosols(aerosols);
-                }
-                ui.add_enabled_ui(aerosols, |ui| {
+                // The planet shares the aerosols' row: the side panel's
+                // height is spoken for (the export buttons stay in view at
+                // the default window size).
+                ui.horizontal(|ui| {
+                    if ui
+                        .checkbox(&mut aerosols, "Aerosols")
+                        .on_hover_text(
+                            "Haze particles (Elterman's profile; Mars: dust): whiter sky \
+                             near the horizon, glow around the sun",
+                        )
+                        .changed()
+                    {
+                        self.state.set_aerosols(aerosols);
+                    }
+                    let planet = self.state.planet();
+                    egui::ComboBox::from_label("Planet")
+                        .selected_text(planet.name())
+                        .show_ui(ui, |ui| {
+                            for p in Planet::ALL {
+                                if ui.selectable_label(p == planet, p.name()).clicked() {
+                                    self.state.set_planet(p);
+                                }
+                            }
+                        })
+                        .response
+                        .on_hover_text(
+                            "The planet's own atmosphere: Mars has CO₂ air, dust and no ozone, \
+                             and the Sun at 1.52 AU (choosing one replaces the atmosphere)",
+                        );
+                });
+                ui.add_enabled_ui(aerosols && earth, |ui| {
                     if let Some(v) = slider(
                         ui,
                         a.aerosol_amount,
@@ -41,7 +66,7 @@ impl AtmospherePanel<'_> {
                 });
                 let mut ozone = a.ozone;
                 if ui
-                    .checkbox(&mut ozone, "Ozone")
+                    .add_enabled(earth, egui::Checkbox::new(&mut ozone, "Ozone"))
                     .on_hover_text(
                         "Ozone absorption (Chappuis band): keeps the twilight zenith blue",
                     )
@@ -49,7 +74,7 @@ impl AtmospherePanel<'_> {
                 {
                     self.state.set_ozone(ozone);
                 }
-                ui.add_enabled_ui(ozone, |ui| {
+                ui.add_enabled_ui(ozone && earth, |ui| {
                     ui.horizontal(|ui| {
                         if let Some(v) = slider(
                             ui,
