@@ -5,6 +5,7 @@
 //! Nothing here knows about rendering.
 
 pub mod aerosol;
+pub mod data_file;
 pub mod ozone;
 pub mod phase_table;
 pub mod planet;

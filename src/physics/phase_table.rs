@@ -17,10 +17,9 @@
 //!   Funk–Hecke integrals, `render::control`) are exact integrals of the
 //!   linear pieces against the polynomials.
 
-use std::collections::HashMap;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 
 /// Most rows a table may have: a phase function at 0.01° steps is 18 001
 /// rows; a file much larger than that is not a phase function table.
@@ -194,49 +193,14 @@ impl PhaseTable {
     /// Reads and parses a phase function file; the error names the file,
     /// the line and the valid form.
     pub fn load(path: &Path) -> Result<Self, String> {
-        let fail = |place: String, reason: String| {
-            format!(
-                "'{}'{place}: {reason} (valid: {VALID_FORM})",
-                path.display()
-            )
-        };
-        if path.is_dir() {
-            return Err(fail(String::new(), "is a directory".into()));
-        }
-        let metadata = std::fs::metadata(path).map_err(|e| fail(String::new(), e.to_string()))?;
-        // 100 000 rows of two numbers are a few MB.
-        if metadata.len() > 16 << 20 {
-            return Err(fail(String::new(), "larger than 16 MiB".into()));
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| fail(String::new(), e.to_string()))?;
-        Self::parse(&text).map_err(|(line, reason)| {
-            let place = if line == 0 {
-                String::new()
-            } else {
-                format!(" line {line}")
-            };
-            fail(place, reason)
-        })
+        super::data_file::load(path, VALID_FORM, Self::parse)
     }
 
-    /// [`Self::load`], once per path for the life of the process: a scene
-    /// is checked ([`crate::scene::Scene::validate`]) and rendered from the
-    /// same numbers even if the file changes in between, and a render
-    /// does not read it again. Errors are not kept: a corrected file is
-    /// read afresh.
+    /// [`Self::load`], once per path for the life of the process
+    /// ([`super::data_file::cached`]).
     pub fn cached(path: &Path) -> Result<Arc<Self>, String> {
-        static CACHE: OnceLock<Mutex<HashMap<PathBuf, Arc<PhaseTable>>>> = OnceLock::new();
-        let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
-        if let Some(table) = cache.lock().expect("cache lock").get(path) {
-            return Ok(Arc::clone(table));
-        }
-        let table = Arc::new(Self::load(path)?);
-        cache
-            .lock()
-            .expect("cache lock")
-            .entry(path.to_owned())
-            .or_insert(table);
-        Ok(Arc::clone(&cache.lock().expect("cache lock")[path]))
+        static CACHE: super::data_file::Cache<PathBuf, PhaseTable> = OnceLock::new();
+        super::data_file::cached(&CACHE, path.to_owned(), || Self::load(path))
     }
 
     /// Index `k` of the segment `mu[k]..=mu[k+1]` that holds `mu`.

@@ -21,9 +21,8 @@
 //! first level the first level's values hold; above the last level there
 //! is no gas (the profile ends the atmosphere there, whatever the top).
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 
 /// Boltzmann constant, J K⁻¹ (exact in the 2019 SI), for n = p / (k_B T).
 pub const BOLTZMANN_J_PER_K: f64 = 1.380_649e-23;
@@ -223,46 +222,14 @@ impl VerticalProfile {
     /// Reads and parses a profile file; the error names the file, the line
     /// and the valid form.
     pub fn load(path: &Path) -> Result<Self, String> {
-        let fail = |place: String, reason: String| {
-            format!(
-                "'{}'{place}: {reason} (valid: {VALID_FORM})",
-                path.display()
-            )
-        };
-        if path.is_dir() {
-            return Err(fail(String::new(), "is a directory".into()));
-        }
-        let metadata = std::fs::metadata(path).map_err(|e| fail(String::new(), e.to_string()))?;
-        if metadata.len() > 16 << 20 {
-            return Err(fail(String::new(), "larger than 16 MiB".into()));
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| fail(String::new(), e.to_string()))?;
-        Self::parse(&text).map_err(|(line, reason)| {
-            let place = if line == 0 {
-                String::new()
-            } else {
-                format!(" line {line}")
-            };
-            fail(place, reason)
-        })
+        super::data_file::load(path, VALID_FORM, Self::parse)
     }
 
-    /// [`Self::load`], once per path for the life of the process (as
-    /// [`crate::physics::phase_table::PhaseTable::cached`]): a scene is
-    /// checked and rendered from the same numbers. Errors are not kept.
+    /// [`Self::load`], once per path for the life of the process
+    /// ([`super::data_file::cached`]).
     pub fn cached(path: &Path) -> Result<Arc<Self>, String> {
-        static CACHE: OnceLock<Mutex<HashMap<PathBuf, Arc<VerticalProfile>>>> = OnceLock::new();
-        let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
-        if let Some(profile) = cache.lock().expect("cache lock").get(path) {
-            return Ok(Arc::clone(profile));
-        }
-        let profile = Arc::new(Self::load(path)?);
-        cache
-            .lock()
-            .expect("cache lock")
-            .entry(path.to_owned())
-            .or_insert(profile);
-        Ok(Arc::clone(&cache.lock().expect("cache lock")[path]))
+        static CACHE: super::data_file::Cache<PathBuf, VerticalProfile> = OnceLock::new();
+        super::data_file::cached(&CACHE, path.to_owned(), || Self::load(path))
     }
 
     /// Altitude of the highest level, m: the gas ends there.

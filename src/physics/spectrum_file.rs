@@ -4,9 +4,8 @@
 //! an error names the file, the line and the valid form (as
 //! [`super::phase_table`]'s do).
 
-use std::collections::HashMap;
 use std::path::{Path, PathBuf};
-use std::sync::{Arc, Mutex, OnceLock};
+use std::sync::{Arc, OnceLock};
 
 use crate::data;
 
@@ -184,45 +183,18 @@ impl Tabulated {
     /// Reads and parses a spectrum file; the error names the file, the
     /// line and the valid form.
     pub fn load(path: &Path, quantity: Quantity) -> Result<Self, String> {
-        let fail = |place: String, reason: String| {
-            format!(
-                "'{}'{place}: {reason} (valid: {})",
-                path.display(),
-                quantity.valid_form()
-            )
-        };
-        if path.is_dir() {
-            return Err(fail(String::new(), "is a directory".into()));
-        }
-        let metadata = std::fs::metadata(path).map_err(|e| fail(String::new(), e.to_string()))?;
-        if metadata.len() > 16 << 20 {
-            return Err(fail(String::new(), "larger than 16 MiB".into()));
-        }
-        let text = std::fs::read_to_string(path).map_err(|e| fail(String::new(), e.to_string()))?;
-        Self::parse(&text, quantity).map_err(|(line, reason)| {
-            let place = if line == 0 {
-                String::new()
-            } else {
-                format!(" line {line}")
-            };
-            fail(place, reason)
+        super::data_file::load(path, &quantity.valid_form(), |text| {
+            Self::parse(text, quantity)
         })
     }
 
-    /// [`Self::load`], once per path for the life of the process, so that a
-    /// scene is checked and rendered from the same numbers (as
-    /// [`super::phase_table::PhaseTable::cached`]). Errors are not kept.
+    /// [`Self::load`], once per path and quantity for the life of the
+    /// process ([`super::data_file::cached`]).
     pub fn cached(path: &Path, quantity: Quantity) -> Result<Arc<Self>, String> {
-        type Cache = Mutex<HashMap<(PathBuf, Quantity), Arc<Tabulated>>>;
-        static CACHE: OnceLock<Cache> = OnceLock::new();
-        let cache = CACHE.get_or_init(|| Mutex::new(HashMap::new()));
-        let key = (path.to_owned(), quantity);
-        if let Some(table) = cache.lock().expect("cache lock").get(&key) {
-            return Ok(Arc::clone(table));
-        }
-        let table = Arc::new(Self::load(path, quantity)?);
-        let mut cache = cache.lock().expect("cache lock");
-        Ok(Arc::clone(cache.entry(key).or_insert(table)))
+        static CACHE: super::data_file::Cache<(PathBuf, Quantity), Tabulated> = OnceLock::new();
+        super::data_file::cached(&CACHE, (path.to_owned(), quantity), || {
+            Self::load(path, quantity)
+        })
     }
 }
 
