@@ -12,6 +12,13 @@ use crate::physics::solar_position::{self, SunPlacement};
 use crate::render::IntegratorOptions;
 use crate::spectrum::Observer;
 
+mod output;
+mod planet;
+
+pub use output::{OutputParams, MAX_SPECTRAL_BANDS, OUTPUT_LAYERS};
+use planet::with_planet_defaults;
+pub use planet::PlanetParams;
+
 /// Highest observer altitude accepted, m.
 pub const MAX_ALTITUDE_M: f64 = 1e8;
 
@@ -237,158 +244,6 @@ pub struct Scene {
     pub planet: PlanetParams,
 }
 
-/// The planet under the scene (`[planet]`): its radius, the top of its
-/// atmosphere, its gas and profile, its aerosol and the Sun's distance
-/// ([`crate::physics::planet`]) are the defaults of the scene's keys that
-/// set them (`[atmosphere]`, `[atmosphere.aerosol]`, `[sun] distance_au`),
-/// which override them.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(default, deny_unknown_fields)]
-pub struct PlanetParams {
-    /// Which planet: `earth` or `mars`.
-    pub preset: Planet,
-}
-
-impl PlanetParams {
-    /// Whether the planet is the Earth (the table is then left out of a
-    /// written scene).
-    pub fn is_earth(&self) -> bool {
-        self.preset == Planet::Earth
-    }
-}
-
-/// The keys of `[atmosphere.aerosol]` in groups set together: a planet's
-/// default for one of them is not used where the scene sets any key of its
-/// group (or a flat `[atmosphere]` key that the group replaces).
-const AEROSOL_KEY_GROUPS: [(&[&str], &[&str]); 5] = [
-    (
-        &["phase", "asymmetry", "g1", "g2", "weight", "phase_file"],
-        &["aerosol_phase", "aerosol_g"],
-    ),
-    (&["profile", "scale_height_m"], &[]),
-    (&["optical_depth_550"], &["aerosol_amount"]),
-    (&["single_scattering_albedo"], &["aerosol_albedo"]),
-    (&["angstrom_exponent"], &[]),
-];
-
-/// `table` (a scene's TOML) with the defaults of `planet` filled in where
-/// it leaves them unset: the atmosphere's keys (with the aerosol's in their
-/// groups, [`AEROSOL_KEY_GROUPS`]) and the Sun's distance.
-fn with_planet_defaults(mut table: toml::Table, planet: Planet) -> toml::Table {
-    let defaults = toml::Table::try_from(AtmosphereParams::for_planet(planet))
-        .expect("an atmosphere serialises");
-    let atmosphere = table
-        .entry("atmosphere")
-        .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-    if let toml::Value::Table(atmosphere) = atmosphere {
-        // The scene's own flat keys, before the defaults join them.
-        let flat: Vec<String> = atmosphere.keys().cloned().collect();
-        for (key, value) in &defaults {
-            if key == "aerosol" {
-                continue;
-            }
-            atmosphere
-                .entry(key.clone())
-                .or_insert_with(|| value.clone());
-        }
-        if let Some(toml::Value::Table(dust)) = defaults.get("aerosol") {
-            let aerosol = atmosphere
-                .entry("aerosol")
-                .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-            if let toml::Value::Table(aerosol) = aerosol {
-                for (keys, flat_keys) in AEROSOL_KEY_GROUPS {
-                    let set = keys.iter().any(|k| aerosol.contains_key(*k))
-                        || flat_keys.iter().any(|k| flat.iter().any(|f| f == k));
-                    if set {
-                        continue;
-                    }
-                    for key in keys {
-                        if let Some(value) = dust.get(*key) {
-                            aerosol.insert((*key).to_owned(), value.clone());
-                        }
-                    }
-                }
-            }
-        }
-    }
-    if let Some(distance_au) = planet.sun_distance_au() {
-        let sun = table
-            .entry("sun")
-            .or_insert_with(|| toml::Value::Table(toml::Table::new()));
-        if let toml::Value::Table(sun) = sun {
-            if !sun.contains_key("date_time") {
-                sun.entry("distance_au")
-                    .or_insert(toml::Value::Float(distance_au));
-            }
-        }
-    }
-    table
-}
-
-/// What a render's EXR holds besides its RGB image: compositing layers and
-/// a spectral image. Unset, a plain RGB file, as before.
-#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
-#[serde(default, deny_unknown_fields)]
-pub struct OutputParams {
-    /// Extra layers by name (see `crate::render::layers`).
-    #[serde(skip_serializing_if = "Vec::is_empty")]
-    pub layers: Vec<String>,
-    /// A spectral image in this many bands over 360–830 nm; unset: none.
-    #[serde(skip_serializing_if = "Option::is_none")]
-    pub spectral_bands: Option<u32>,
-}
-
-/// The most bands of a spectral image: 1 nm each over 360–830 nm. Finer
-/// bands than the colour-matching tables' 1–5 nm steps resolve nothing
-/// and would each catch too few wavelength samples to be more than noise.
-pub const MAX_SPECTRAL_BANDS: u32 = 470;
-
-impl OutputParams {
-    /// Whether the output is the RGB image alone.
-    pub fn is_plain(&self) -> bool {
-        self.layers.is_empty() && self.spectral_bands.is_none()
-    }
-
-    /// Checks `spectral_bands`: 1 to [`MAX_SPECTRAL_BANDS`].
-    pub fn validate_spectral(&self) -> Result<(), SceneError> {
-        match self.spectral_bands {
-            Some(n) if !(1..=MAX_SPECTRAL_BANDS).contains(&n) => Err(SceneError::new(
-                "output.spectral_bands",
-                format!(
-                    "{n} bands: must be 1 to {MAX_SPECTRAL_BANDS} (360–830 nm in bands \
-                     of at least 1 nm)"
-                ),
-            )),
-            _ => Ok(()),
-        }
-    }
-
-    /// Checks the layer names: each one of [`OUTPUT_LAYERS`].
-    pub fn check_layers(&self) -> Result<(), SceneError> {
-        match self
-            .layers
-            .iter()
-            .find(|name| !OUTPUT_LAYERS.contains(&name.as_str()))
-        {
-            Some(name) => Err(SceneError::new(
-                "layers",
-                format!(
-                    "unknown layer '{name}' (valid layers: {})",
-                    OUTPUT_LAYERS.join(", ")
-                ),
-            )),
-            None => Ok(()),
-        }
-    }
-}
-
-/// The layers a render can write beside its RGB image: `sky`, `sun`,
-/// `ground` and `variance` from the render's own paths
-/// (`crate::render::film_layers`),
-/// `transmittance` and `Z` from each pixel's view ray
-/// (`crate::render::layers`).
-pub const OUTPUT_LAYERS: &[&str] = &["sky", "sun", "ground", "variance", "transmittance", "Z"];
-
 /// An invalid parameter.
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("invalid {parameter}: {message}")]
@@ -511,22 +366,28 @@ pub fn show_number(value: f64) -> String {
 
 /// Built-in presets, shipped as TOML in `assets/presets/`.
 pub const PRESETS: [(&str, &str); 8] = [
-    ("midday", include_str!("../assets/presets/midday.toml")),
+    ("midday", include_str!("../../assets/presets/midday.toml")),
     (
         "afternoon",
-        include_str!("../assets/presets/afternoon.toml"),
+        include_str!("../../assets/presets/afternoon.toml"),
     ),
-    ("sunset", include_str!("../assets/presets/sunset.toml")),
-    ("twilight", include_str!("../assets/presets/twilight.toml")),
-    ("space", include_str!("../assets/presets/space.toml")),
-    ("airliner", include_str!("../assets/presets/airliner.toml")),
+    ("sunset", include_str!("../../assets/presets/sunset.toml")),
+    (
+        "twilight",
+        include_str!("../../assets/presets/twilight.toml"),
+    ),
+    ("space", include_str!("../../assets/presets/space.toml")),
+    (
+        "airliner",
+        include_str!("../../assets/presets/airliner.toml"),
+    ),
     (
         "mars-noon",
-        include_str!("../assets/presets/mars-noon.toml"),
+        include_str!("../../assets/presets/mars-noon.toml"),
     ),
     (
         "mars-sunset",
-        include_str!("../assets/presets/mars-sunset.toml"),
+        include_str!("../../assets/presets/mars-sunset.toml"),
     ),
 ];
 
