@@ -14,7 +14,9 @@ use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::{aerosol, rayleigh, standard_atmosphere};
 use skyrender::render::medium::{Bounds, Medium, SpectralLanes, TransmittanceEstimator};
-use skyrender::render::{direction_from_az_el, Integrator, IntegratorOptions, Renderer};
+use skyrender::render::{
+    direction_from_az_el, Integrator, IntegratorOptions, Renderer, TechniquePlan,
+};
 use skyrender::rng::Rng;
 use skyrender::spectrum::{ColourMatching, Observer};
 use skyrender::Scene;
@@ -115,9 +117,9 @@ fn phase_sampling(c: &mut Criterion) {
 
 fn paths(c: &mut Criterion) {
     let f = fixture();
-    let options = IntegratorOptions::default();
+    let plan = TechniquePlan::outside_a_scene(&IntegratorOptions::default());
     let sun = direction_from_az_el(180.0, 45.0);
-    let integrator = Integrator::new(&f.medium, &options, sun);
+    let integrator = Integrator::new(&f.medium, &plan, sun);
     let mut rng = Rng::new(3, 3);
     for (label, elevation) in [("zenith", 90.0), ("elevation_5deg", 5.0), ("ground", -30.0)] {
         let dir = direction_from_az_el(90.0, elevation);
@@ -137,11 +139,7 @@ fn paths(c: &mut Criterion) {
     scene.render.width = 256;
     scene.render.height = 128;
     let renderer = Renderer::new(&scene).expect("scene");
-    let pixel_integrator = Integrator::new(
-        &f.medium,
-        &scene.render.integrator,
-        renderer.sun_direction(),
-    );
+    let pixel_integrator = Integrator::new(&f.medium, renderer.plan(), renderer.sun_direction());
     let mut sample = 0u64;
     c.bench_function("path/sample_pixel/midday_256x128_row_40", |b| {
         b.iter(|| {

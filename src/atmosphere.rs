@@ -7,6 +7,7 @@ use std::sync::Arc;
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::SceneError;
 use crate::physics::phase_table::PhaseTable;
 use crate::physics::planet::Planet;
 use crate::physics::profile::VerticalProfile;
@@ -16,7 +17,6 @@ use crate::physics::{
     aerosol, ozone, standard_atmosphere, DEFAULT_ATMOSPHERE_TOP_M, DOBSON_UNIT_PER_M2,
     EARTH_RADIUS_M,
 };
-use crate::scene::SceneError;
 
 /// Everything that defines the atmosphere and the planet under it.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -451,7 +451,7 @@ fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), Scen
             parameter,
             format!(
                 "{} is outside the valid range {lo} to {hi}",
-                crate::scene::show_number(value)
+                crate::error::show_number(value)
             ),
         ))
     }

@@ -1,10 +1,52 @@
 //! `skyrender`: the command-line and preview-app entry point.
 
 use clap::error::ErrorKind;
-use clap::Parser;
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+
+/// Physically based spectral sky renderer. Without a subcommand, opens the
+/// interactive preview.
+#[derive(Parser, Debug)]
+#[command(
+    name = "skyrender",
+    version,
+    about,
+    args_conflicts_with_subcommands = true
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Option<Shell>,
+    /// Preview app: save a screenshot of the window to this PNG and exit.
+    #[arg(long, value_name = "OUT.png")]
+    screenshot: Option<PathBuf>,
+    /// Preview app: seconds to let the image refine before the screenshot.
+    #[arg(
+        long,
+        allow_hyphen_values = true,
+        value_name = "SECONDS",
+        default_value_t = 5.0
+    )]
+    screenshot_after: f64,
+    /// Preview app: start from this preset.
+    #[arg(long, value_name = "NAME", conflicts_with = "scene")]
+    preset: Option<String>,
+    /// Preview app: start from this scene description (TOML).
+    #[arg(long, value_name = "FILE.toml")]
+    scene: Option<PathBuf>,
+}
+
+/// The shells: the command line's subcommands, and the benchmark.
+#[derive(Subcommand, Debug)]
+enum Shell {
+    #[command(flatten)]
+    Cli(Box<skyrender::cli::Command>),
+    /// Measure speed and noise (see BENCHMARKS.md).
+    Bench(skyrender::bench::BenchArgs),
+}
 
 fn main() {
-    let cli = match skyrender::cli::Cli::try_parse() {
+    let cli = match Cli::try_parse() {
         Ok(cli) => cli,
         Err(e) if matches!(e.kind(), ErrorKind::DisplayHelp | ErrorKind::DisplayVersion) => {
             e.exit()
@@ -29,7 +71,8 @@ fn main() {
     // writes stay atomic, only that clean-up is lost.
     let _ = skyrender::output::atomic::remove_on_signals();
     let result = match cli.command {
-        Some(command) => skyrender::cli::run(command).map_err(|e| e.to_string()),
+        Some(Shell::Cli(command)) => skyrender::cli::run(*command).map_err(|e| e.to_string()),
+        Some(Shell::Bench(args)) => skyrender::bench::run(&args),
         None => skyrender::app::run_app(
             cli.preset.as_deref(),
             cli.scene.as_deref(),

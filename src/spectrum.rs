@@ -5,6 +5,10 @@ use std::sync::OnceLock;
 
 use crate::data::{self, Table};
 
+/// Wavelengths carried by one path (hero wavelength and its rotations,
+/// Wilkie et al. 2014).
+pub const LANES: usize = 4;
+
 /// Maximum luminous efficacy for photopic vision, lm W⁻¹ (CIE; BIPM SI
 /// brochure: K_cd = 683 lm W⁻¹ at 540 THz).
 pub const K_M: f64 = 683.0;

@@ -276,11 +276,7 @@ fn a_tabulated_henyey_greenstein_renders_as_henyey_greenstein() {
     }
     // At sunset the control variate is on with the table as with HG.
     let sunset = hazy(2.0, &table);
-    let resolved = sunset
-        .render
-        .integrator
-        .resolved(sunset.sun.elevation_deg, &sunset.atmosphere);
-    assert_eq!(resolved.control_variate, Some(true));
+    assert!(Renderer::new(&sunset).unwrap().plan().control_variate);
 }
 
 #[test]
@@ -359,17 +355,9 @@ fn a_double_henyey_greenstein_renders_as_its_table() {
     for (zenith_deg, azimuth_deg) in [(85.0, 180.0), (60.0, 0.0)] {
         let probe = |phase: &str| {
             let scene = hazy(2.0, phase);
-            let resolved = scene
-                .render
-                .integrator
-                .resolved(scene.sun.elevation_deg, &scene.atmosphere);
-            assert_eq!(resolved.control_variate, Some(true), "{phase}");
-            Renderer::new(&scene).unwrap().probe_radiance(
-                zenith_deg,
-                azimuth_deg,
-                &[450.0, 650.0],
-                20_000,
-            )
+            let renderer = Renderer::new(&scene).unwrap();
+            assert!(renderer.plan().control_variate, "{phase}");
+            renderer.probe_radiance(zenith_deg, azimuth_deg, &[450.0, 650.0], 20_000)
         };
         let (a, b) = (probe(&analytic), probe(&table));
         for (a, b) in a.iter().zip(&b) {

@@ -6,6 +6,7 @@ use std::sync::Arc;
 use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::sun;
+use skyrender::plan::{Conditions, TechniquePlan};
 use skyrender::render::control::RadianceTable;
 use skyrender::render::guide::SkyGuide;
 use skyrender::render::sunlight::CameraDensities;
@@ -13,6 +14,16 @@ use skyrender::render::{
     direction_from_az_el, Integrator, IntegratorOptions, Medium, SpectralLanes,
     TransmittanceEstimator, LANES,
 };
+
+/// The plan of `options` for a sun `sun_el` up in `atmosphere`, outside a
+/// renderer (no circles to splat along).
+fn plan_at(
+    options: &IntegratorOptions,
+    sun_el: f64,
+    atmosphere: &AtmosphereParams,
+) -> TechniquePlan {
+    TechniquePlan::new(options, &Conditions::new(sun_el, atmosphere, false))
+}
 use skyrender::rng::Rng;
 
 /// Mean and standard error of `n` samples of lane 0..LANES, path i drawing
@@ -156,7 +167,8 @@ fn single_scattering_matches_the_quadrature_of_the_single_scattering_integral() 
         ..IntegratorOptions::default()
     };
     let sun_dir = direction_from_az_el(180.0, 30.0);
-    let integrator = Integrator::new(&medium, &options, sun_dir);
+    let plan = TechniquePlan::outside_a_scene(&options);
+    let integrator = Integrator::new(&medium, &plan, sun_dir);
     let origin = DVec3::new(0.0, 0.0, atmosphere.params.planet_radius_m + 500.0);
     let wavelengths = [450.0, 550.0, 650.0, 750.0];
     let lanes = unit_sun_lanes(&medium, wavelengths);
@@ -194,7 +206,8 @@ fn thin_layer_radiance_is_single_scattering_to_first_order() {
     let medium = Medium::new(&atmosphere);
     let options = IntegratorOptions::default();
     let sun_dir = direction_from_az_el(180.0, 60.0);
-    let integrator = Integrator::new(&medium, &options, sun_dir);
+    let plan = TechniquePlan::outside_a_scene(&options);
+    let integrator = Integrator::new(&medium, &plan, sun_dir);
     let origin = DVec3::new(0.0, 0.0, atmosphere.params.planet_radius_m);
     let lanes = unit_sun_lanes(&medium, [1000.0; LANES]);
     let view = DVec3::Z;
@@ -227,7 +240,8 @@ fn direct_sun_transmittance_is_beer_lambert() {
     let medium = Medium::new(&atmosphere);
     let options = IntegratorOptions::default();
     let sun_dir = direction_from_az_el(120.0, 25.0);
-    let integrator = Integrator::new(&medium, &options, sun_dir);
+    let plan = TechniquePlan::outside_a_scene(&options);
+    let integrator = Integrator::new(&medium, &plan, sun_dir);
     let origin = DVec3::new(0.0, 0.0, atmosphere.params.planet_radius_m + 10.0);
     let wavelengths = [350.0, 450.0, 603.0, 800.0];
     let lanes = unit_sun_lanes(&medium, wavelengths);
@@ -329,7 +343,8 @@ fn white_ground_energy(params: AtmosphereParams) {
     let options = IntegratorOptions::default();
     let mu0 = 0.6_f64;
     let sun_dir = DVec3::new((1.0 - mu0 * mu0).sqrt(), 0.0, mu0);
-    let integrator = Integrator::new(&medium, &options, sun_dir);
+    let plan = TechniquePlan::outside_a_scene(&options);
+    let integrator = Integrator::new(&medium, &plan, sun_dir);
     let top = atmosphere.top_radius_m() + 1.0;
     let lanes = unit_sun_lanes(&medium, [420.0, 500.0, 620.0, 780.0]);
     let origin = DVec3::new(0.0, 0.0, top);
@@ -370,7 +385,8 @@ fn estimator_variants_agree_statistically() {
     let view = direction_from_az_el(230.0, 12.0);
     let lanes = unit_sun_lanes(&medium, [440.0, 520.0, 600.0, 680.0]);
     let run = |options: IntegratorOptions, streams: u64| {
-        let integrator = Integrator::new(&medium, &options, sun_dir);
+        let plan = TechniquePlan::outside_a_scene(&options);
+        let integrator = Integrator::new(&medium, &plan, sun_dir);
         estimate(streams, 20_000, |rng| {
             integrator.radiance(origin, view, &lanes, rng)
         })
@@ -453,7 +469,8 @@ fn one_wavelength_per_path_agrees_with_four() {
     let medium = Medium::new(&atmosphere);
     let options = IntegratorOptions::default();
     let sun_dir = direction_from_az_el(270.0, 2.0);
-    let integrator = Integrator::new(&medium, &options, sun_dir);
+    let plan = TechniquePlan::outside_a_scene(&options);
+    let integrator = Integrator::new(&medium, &plan, sun_dir);
     let origin = DVec3::new(0.0, 0.0, atmosphere.params.planet_radius_m + 2.0);
     let view = direction_from_az_el(270.0, 10.0);
     let four = SpectralLanes::new([450.0, 520.0, 600.0, 680.0], 4, &medium, true);
@@ -494,7 +511,8 @@ fn sunlight_sampling_is_unbiased_in_twilight() {
                 sun_lobe: Some(sun_lobe),
                 ..IntegratorOptions::default()
             };
-            let integrator = Integrator::new(&medium, &options, sun_dir);
+            let plan = TechniquePlan::outside_a_scene(&options);
+            let integrator = Integrator::new(&medium, &plan, sun_dir);
             estimate(streams, paths, |rng| {
                 integrator.radiance(origin, view, &lanes, rng)
             })
@@ -549,8 +567,9 @@ fn camera_ray_densities_are_unbiased() {
                 max_scattering_order: order,
                 ..IntegratorOptions::default()
             };
+            let plan = TechniquePlan::outside_a_scene(&options);
             let integrator =
-                Integrator::new(&medium, &options, sun_dir).with_camera_densities(&camera);
+                Integrator::new(&medium, &plan, sun_dir).with_camera_densities(&camera);
             estimate(streams, paths, |rng| {
                 integrator.radiance(origin, view, &lanes, rng)
             })
@@ -631,7 +650,8 @@ fn sky_guide_is_unbiased() {
         let camera = CameraDensities::new(&medium, origin, sun_dir);
         let guide = SkyGuide::new(&medium, sun_dir);
         let run = |options: IntegratorOptions, paths: u32, streams: u64| {
-            let integrator = Integrator::new(&medium, &options, sun_dir)
+            let plan = TechniquePlan::outside_a_scene(&options);
+            let integrator = Integrator::new(&medium, &plan, sun_dir)
                 .with_camera_densities(&camera)
                 .with_sky_guide(&guide);
             estimate(streams, paths, |rng| {
@@ -678,9 +698,9 @@ fn sky_guide_is_unbiased() {
                 let what = format!(
                     "{altitude_m} m, view ({az}, {el}), order {order:?}, guide {}, shadow {}, \
                      sunlight {}, splitting {:?}",
-                    options.sky_guide(),
+                    options.sky_guide.unwrap_or_default(),
                     options.shadow_samples,
-                    options.sunlight_samples(),
+                    options.sunlight_samples.unwrap_or_default(),
                     options.splitting
                 );
                 // Standard errors: by day 0.5–0.7 %, from orbit 1–1.7 %, at
@@ -722,10 +742,11 @@ fn camera_importance_is_unbiased() {
         for order in [Some(2), None] {
             let options = IntegratorOptions {
                 max_scattering_order: order,
-                ..IntegratorOptions::default().resolved(sun_el, &atmosphere.params)
+                ..IntegratorOptions::default()
             };
             let run = |camera: &CameraDensities, streams: u64| {
-                let integrator = Integrator::new(&medium, &options, sun_dir)
+                let plan = plan_at(&options, sun_el, &atmosphere.params);
+                let integrator = Integrator::new(&medium, &plan, sun_dir)
                     .with_camera_densities(camera)
                     .with_sky_guide(&guide);
                 estimate(streams, 20_000, |rng| {
@@ -772,8 +793,8 @@ fn the_control_variate_is_unbiased() {
             sun_dir,
             (360.0, 830.0),
         );
-        let run = |options: IntegratorOptions, paths: u32, streams: u64| {
-            let integrator = Integrator::new(&medium, &options, sun_dir)
+        let run = |plan: TechniquePlan, paths: u32, streams: u64| {
+            let integrator = Integrator::new(&medium, &plan, sun_dir)
                 .with_camera_densities(&camera)
                 .with_sky_guide(&guide)
                 .with_control(&table);
@@ -782,20 +803,24 @@ fn the_control_variate_is_unbiased() {
             })
         };
         let reference = run(
-            IntegratorOptions {
+            TechniquePlan::outside_a_scene(&IntegratorOptions {
                 camera_samples: Some(0),
                 sky_guide: Some(0.0),
                 forced_collision_depth: 0,
                 ..IntegratorOptions::default()
-            },
+            }),
             40_000,
             600,
         );
-        let controlled = IntegratorOptions {
-            control_variate: Some(true),
-            ..IntegratorOptions::default().resolved(sun_el, &atmosphere.params)
-        };
-        assert_eq!(controlled.max_scattering_order, None);
+        let controlled = plan_at(
+            &IntegratorOptions {
+                control_variate: Some(true),
+                ..IntegratorOptions::default()
+            },
+            sun_el,
+            &atmosphere.params,
+        );
+        assert!(controlled.control_variate);
         let what = format!("sun {sun_el}°, view ({az}, {el}), all orders");
         // Standard errors 0.5 % by day, 2–3 % at sunset, 5 % at twilight.
         let power = if sun_el < 0.0 { 0.08 } else { 0.04 };
@@ -820,14 +845,15 @@ fn twilight_techniques_leave_the_mean_alone() {
     let sun_dir = direction_from_az_el(270.0, sun_el);
     let guide = Arc::new(SkyGuide::new(&medium, sun_dir));
     let plain = CameraDensities::new(&medium, origin, sun_dir);
-    let default = IntegratorOptions::default().resolved(sun_el, &atmosphere.params);
-    assert!(default.camera_importance() > 0.0 && default.splitting == Some(true));
+    let default = IntegratorOptions::default();
+    let default_plan = plan_at(&default, sun_el, &atmosphere.params);
+    assert!(default_plan.camera.importance > 0.0 && default_plan.termination.splitting);
     let weighted = weighted_camera_densities(
         &medium,
         origin,
         sun_dir,
         &guide,
-        default.camera_importance(),
+        default_plan.camera.importance,
     );
     // What is switched off, and its options. The comparisons' combined
     // standard errors: 0.4–1.2 %, 1.4–5.5 % with delta-tracked segments
@@ -894,12 +920,13 @@ fn twilight_techniques_leave_the_mean_alone() {
     for (k, (az, el)) in [(270.0, 8.0), (90.0, 30.0)].into_iter().enumerate() {
         let view = direction_from_az_el(az, el);
         let run = |options: &IntegratorOptions, paths: u32, streams: u64| {
-            let camera = if options.camera_importance() > 0.0 {
+            let plan = plan_at(options, sun_el, &atmosphere.params);
+            let camera = if plan.camera.importance > 0.0 {
                 &weighted
             } else {
                 &plain
             };
-            let integrator = Integrator::new(&medium, options, sun_dir)
+            let integrator = Integrator::new(&medium, &plan, sun_dir)
                 .with_camera_densities(camera)
                 .with_sky_guide(&guide);
             estimate(streams, paths, |rng| {
@@ -910,7 +937,8 @@ fn twilight_techniques_leave_the_mean_alone() {
         let reference = run(&default, 80_000, streams);
         for (s, (name, options)) in (streams + 1..).zip(&off) {
             let what = format!("twilight, view ({az}, {el}), {name}");
-            let power = if options.sunlight_samples() == 0 {
+            let planned = plan_at(options, sun_el, &atmosphere.params);
+            let power = if planned.segments.sunlight_samples == 0 {
                 0.08
             } else {
                 0.02

@@ -216,8 +216,8 @@ fn an_endless_scene_file_is_refused_quickly() {
 /// unit or range and its default (or is required).
 #[test]
 fn every_render_flag_has_a_help_line_with_its_default() {
-    use clap::CommandFactory;
-    let cli = skyrender::cli::Cli::command();
+    use clap::Subcommand;
+    let cli = skyrender::cli::Command::augment_subcommands(clap::Command::new("skyrender"));
     let render = cli.find_subcommand("render").expect("render");
     for arg in render.get_arguments() {
         let id = arg.get_id().as_str();

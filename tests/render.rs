@@ -46,12 +46,7 @@ fn same_seed_same_image_whatever_the_thread_count() {
 fn every_preset_renders_finite_pixels_non_negative_without_the_control_variate() {
     for (name, _) in skyrender::scene::PRESETS {
         let scene = small(name, 16, 8, 2);
-        let signed = scene
-            .render
-            .integrator
-            .resolved(scene.sun.elevation_deg, &scene.atmosphere)
-            .control_variate
-            == Some(true);
+        let signed = Renderer::new(&scene).unwrap().plan().control_variate;
         let pixels = render(&scene, 2);
         let luminance: Vec<f32> = pixels
             .iter()

@@ -14,8 +14,7 @@ use crate::scene::{CameraKind, Scene};
 
 pub use super::export_state::*;
 
-/// Pixels in the preview at scale 1 (320 × 160 for the equirectangular view).
-pub const PREVIEW_BASE_PIXELS: f64 = 320.0 * 160.0;
+pub use crate::render::service::PREVIEW_BASE_PIXELS;
 /// Range of the preview resolution scale (a linear factor on width and height).
 pub const PREVIEW_SCALE_RANGE: (f64, f64) = (0.25, 3.0);
 /// Range of the sun elevation slider, degrees.
@@ -127,7 +126,7 @@ impl Default for RenderSettings {
         Self {
             preview_scale: 1.0,
             paused: false,
-            target_spp: 1024,
+            target_spp: crate::render::service::PREVIEW_TARGET_SPP,
         }
     }
 }
@@ -539,34 +538,20 @@ impl AppState {
         self.render.paused = paused;
     }
 
-    /// Width and height of the preview for the current camera mode and scale:
-    /// 2:1 for the equirectangular map, square for the fisheye, the scene's
-    /// own aspect ratio for the perspective camera; about
-    /// [`PREVIEW_BASE_PIXELS`] × scale² pixels in each case.
+    /// Width and height of the preview for the current camera mode and
+    /// scale ([`crate::render::service::preview_size`]).
     pub fn preview_size(&self) -> (u32, u32) {
-        let pixels = PREVIEW_BASE_PIXELS * self.render.preview_scale * self.render.preview_scale;
-        let aspect = match self.scene.camera.kind {
-            CameraKind::Equirect => 2.0,
-            CameraKind::Fisheye => 1.0,
-            CameraKind::Perspective => {
-                let r = &self.scene.render;
-                (f64::from(r.width) / f64::from(r.height)).clamp(0.5, 3.0)
-            }
-        };
-        let width = (pixels * aspect).sqrt().round().max(1.0);
-        let height = (width / aspect).round().max(1.0);
-        (width as u32, height as u32)
+        crate::render::service::preview_size(&self.scene, self.render.preview_scale)
     }
 
     /// The scene the preview renders: the user's scene at the preview size,
     /// with the target sample count.
     pub fn preview_scene(&self) -> Scene {
-        let mut scene = self.scene.clone();
-        let (width, height) = self.preview_size();
-        scene.render.width = width;
-        scene.render.height = height;
-        scene.render.spp = self.render.target_spp;
-        scene
+        crate::render::service::preview_scene(
+            &self.scene,
+            self.render.preview_scale,
+            self.render.target_spp,
+        )
     }
 
     /// The scene an HDR panorama export renders: the user's scene with an
@@ -655,6 +640,17 @@ impl AppState {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_first_preview_is_the_benchmarks_preview_scene() {
+        // `skyrender bench`'s `preview` scene is the app's first preview.
+        let state = AppState::default();
+        assert_eq!(
+            state.preview_scene(),
+            crate::render::service::default_preview_scene()
+        );
+        assert_eq!(state.preview_size(), (320, 160));
+    }
 
     #[test]
     fn the_export_writes_every_layer_when_asked() {

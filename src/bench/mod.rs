@@ -44,6 +44,7 @@ mod report;
 use ablation::selected_variants;
 pub use ablation::{ablation_variants, Variant};
 use noise::render_for;
+pub use noise::SUN_CONE_DEG;
 pub use noise::{
     measure_noise, process_cpu_seconds, relative_noise, sky_mask, time_to_noise, NoiseRun, SkyMask,
 };
@@ -107,8 +108,6 @@ pub const PREVIEW: &str = "preview";
 /// Size of the fixed benchmark scenes (equirectangular).
 pub const BENCH_WIDTH: u32 = 256;
 pub const BENCH_HEIGHT: u32 = 128;
-/// Half-angle of the cone about the sun's centre left out of the noise, degrees.
-pub const SUN_CONE_DEG: f64 = 2.0;
 /// Seed of the first of the two independent renders (the second takes the
 /// next).
 const DEFAULT_SEED: u64 = 0x5EED_000A;
@@ -137,7 +136,7 @@ pub fn noise_target(scene: &str) -> Option<f64> {
 /// scene.
 pub fn bench_scene(name: &str) -> Result<Scene, String> {
     if name.eq_ignore_ascii_case(PREVIEW) {
-        return Ok(crate::app::state::AppState::default().preview_scene());
+        return Ok(crate::render::service::default_preview_scene());
     }
     // Scene::preset's error names the unknown preset and the valid ones.
     let mut scene =
@@ -154,7 +153,7 @@ fn first_frame_scene(name: &str, scene: &Scene) -> Scene {
         return scene.clone();
     }
     let mut s = scene.clone();
-    let preview = crate::app::state::AppState::default().preview_scene();
+    let preview = crate::render::service::default_preview_scene();
     s.render.width = preview.render.width;
     s.render.height = preview.render.height;
     s
@@ -677,9 +676,9 @@ pub fn run(args: &BenchArgs) -> Result<(), String> {
     let report = bench(args)?;
     if args.json {
         let json = serde_json::to_string_pretty(&report).map_err(|e| e.to_string())?;
-        crate::cli::emit(&format!("{json}\n"));
+        crate::output::stdout::emit(&format!("{json}\n"));
     } else {
-        crate::cli::emit(&format_report(&report));
+        crate::output::stdout::emit(&format_report(&report));
     }
     Ok(())
 }

@@ -8,9 +8,11 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use super::SUN_CONE_DEG;
 use crate::render::{Camera, Film, Renderer};
 use crate::scene::Scene;
+
+/// Half-angle of the cone about the sun's centre left out of the noise, degrees.
+pub const SUN_CONE_DEG: f64 = 2.0;
 
 /// Which pixels count as sky.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]

@@ -7,8 +7,9 @@ use std::time::Instant;
 
 use clap::Args;
 
-use super::{check_output_path, emit, CliError, SceneArgs};
+use super::scene_args::{check_output_path, CliError, SceneArgs};
 use crate::export::{self, FramePattern, FrameRange, Timelapse};
+use crate::output::stdout::emit;
 use crate::output::OutputFormat;
 use crate::render::parts::{PassRange, Tile};
 use crate::scene::{Scene, SceneError};

@@ -61,6 +61,7 @@
 pub mod atomic;
 pub mod channels;
 pub mod spectral;
+pub mod stdout;
 
 use std::collections::HashSet;
 use std::fs::File;

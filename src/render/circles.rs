@@ -1034,10 +1034,12 @@ mod tests {
         // sampler alone.
         let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
         let sun = direction_from_az_el(30.0, -4.0);
-        let options = crate::render::IntegratorOptions::default()
-            .resolved(-4.0, &AtmosphereParams::default());
+        let plan = crate::plan::TechniquePlan::new(
+            &crate::plan::IntegratorOptions::default(),
+            &crate::plan::Conditions::new(-4.0, &AtmosphereParams::default(), true),
+        );
         let guide = SkyGuide::new(&medium, sun);
-        let integrator = Integrator::new(&medium, &options, sun).with_sky_guide(&guide);
+        let integrator = Integrator::new(&medium, &plan, sun).with_sky_guide(&guide);
         let camera = Camera::new(&crate::scene::CameraParams::default(), 64, 32);
         let observer = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2.0);
         let splatter =

@@ -363,7 +363,7 @@ mod tests {
             DVec3::new(0.3, -0.5, 0.81).normalize(),
             DVec3::new(-0.9, 0.1, -0.2).normalize(),
         ] {
-            let (t, b) = super::super::integrator::orthonormal_basis(omega);
+            let (t, b) = super::super::directions::orthonormal_basis(omega);
             let expected = frame.basis(omega);
             for (phase, k) in &phases {
                 let (nt, np) = (4000_u32, 256_u32);

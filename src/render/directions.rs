@@ -69,7 +69,7 @@ impl LocalAxes {
         let toward_sun = if horizontal.length_squared() > 1e-18 {
             horizontal.normalize()
         } else {
-            super::integrator::orthonormal_basis(up).0
+            orthonormal_basis(up).0
         };
         Self {
             up,
@@ -175,6 +175,18 @@ impl ViewFrame {
     }
 }
 
+/// Two unit vectors completing `n` to a right-handed orthonormal basis
+/// (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
+pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
+    let sign = 1f64.copysign(n.z);
+    let a = -1.0 / (sign + n.z);
+    let b = n.x * n.y * a;
+    (
+        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
+        DVec3::new(b, sign + n.y * n.y * a, -n.y),
+    )
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -256,7 +268,7 @@ impl SunCells {
             planet_radius_m,
             top_radius_m,
             sun_direction,
-            across_sun: super::integrator::orthonormal_basis(sun_direction).0,
+            across_sun: orthonormal_basis(sun_direction).0,
             altitude,
             sun_zenith,
         }

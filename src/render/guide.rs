@@ -33,8 +33,7 @@
 //! of the directions in the shadow from the table by default, 0.35 with the
 //! sun below the horizon (second-order light at twilight ~25× cheaper per
 //! path; the heavier tails of higher orders stay, so the whole image gains
-//! 1.1–1.35× at equal time, `BENCHMARKS.md`, "The sky guide", sessions 10
-//! and 15); `shadow_samples` is off.
+//! 1.1–1.35× at equal time, `BENCHMARKS.md`); `shadow_samples` is off.
 
 use std::sync::OnceLock;
 

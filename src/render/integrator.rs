@@ -30,18 +30,20 @@
 //! Absorption never terminates a path; it only weights it. Russian roulette
 //! ends paths without bias. On the branches of camera paths the first
 //! tentative collision is forced into the segment where the ray would
-//! otherwise leave the atmosphere ([`IntegratorOptions::forced_collision_depth`]):
+//! otherwise leave the atmosphere ([`crate::plan::IntegratorOptions::forced_collision_depth`]):
 //! an escaping path adds nothing there, so conditioning on not escaping and
 //! weighting by its probability turns a rare large contribution into a
 //! frequent small one.
 //!
 //! **Scattering directions** mix the phase function about the path's
-//! direction with the phase function about the sun's (`sun_lobe`: 0.3, 0.15
-//! with the sun high, 0 with the control variate on; see
+//! direction with the phase function about the sun's (`sun_lobe`; see
 //! `Integrator::sample_scatter_direction`).
 //!
-//! **Segment estimates at low sun.** With the sun lower than
-//! [`LOW_SUN_ELEVATION_DEG`], `sunlight_samples` (1 by default there)
+//! Which of the techniques below are on, and how strongly, is the
+//! [`TechniquePlan`]'s choice ([`crate::plan`], by the sun's regime); the
+//! integrator reads the plan as it is.
+//!
+//! **Segment estimates at low sun.** With the sun low, `sunlight_samples`
 //! estimates every segment like the camera ray's, from the [`SkyGuide`]'s
 //! cached densities of rays from points of the same altitude and solar
 //! zenith (without a guide, from a density built per segment,
@@ -50,15 +52,14 @@
 //! stretches of long rays, which chance collisions rarely hit. Higher up
 //! the sun, delta tracking wins at equal time.
 //!
-//! **In the planet's shadow** a quarter of the scattering directions
-//! (`sky_guide`; 0.35 with the sun below the horizon) come from the table
+//! **In the planet's shadow** a share of the scattering directions
+//! (`sky_guide`) come from the table
 //! of incoming once-scattered light ([`super::guide`]): there the light
 //! comes from the sunlit air above the horizon, which no phase function
 //! about a fixed axis finds. With the sun low, sunlit points are guided
 //! too (`sky_guide_sunlit`).
 //!
-//! **Roulette and splitting by importance** (`splitting`, on with the sun
-//! below the horizon and roulette on): at a real scattering of a low-sun
+//! **Roulette and splitting by importance** (`splitting`, at twilight): at a real scattering of a low-sun
 //! path, the path's expected light is its weight times the guide's mean
 //! once-scattered radiance at the point ([`SkyGuide::skylight`]); relative
 //! to that at the path's start it decides roulette (below a quarter) or how
@@ -70,10 +71,9 @@
 //! reach the brighter air high up or toward the sun, and there carry large
 //! weights.
 //!
-//! **The once-scattered light as a control variate** (`control_variate`, on
-//! with the sun 0–3° above the horizon, unless the haze is thicker than
-//! aerosol optical depth 4 at 550 nm or its g lies outside −0.5 to 0.8,
-//! where the table cannot hold the light, [`control_table_holds`]): at
+//! **The once-scattered light as a control variate** (`control_variate`, at
+//! sunset, unless the haze is too thick or too peaked for its table,
+//! [`crate::plan::control_table_holds`]): at
 //! every real scattering the exact phase-function integral of a tabulated
 //! approximation A of the once-scattered light arriving there is added,
 //! and the path going on estimates only L − A ([`super::control`]). At
@@ -82,8 +82,8 @@
 //! out, it leaves 0.67× the variance (`BENCHMARKS.md`).
 //!
 //! **Multiply scattered light splatted along circles of symmetry**
-//! (`circle_splatting`, on with the sun below 10°): the camera's
-//! paths keep only their next-event points (8 per ray by default, not 2:
+//! (`circle_splatting`, with the sun low): the camera's
+//! paths keep only their next-event points (more per ray than without:
 //! single scattering's variance is per point) and ground branches, and the
 //! film gets the light scattered again in the air from paths started
 //! anywhere in the visible air, each added to the pixels along its point's
@@ -108,13 +108,14 @@ use glam::DVec3;
 
 use super::columns::FixedStart;
 use super::control::{CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX, NODES};
+use super::directions::orthonormal_basis;
 use super::guide::{GuideAt, SkyGuide};
 use super::medium::Span;
-use super::medium::{Bounds, Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
+use super::medium::{Bounds, Lanes, Medium, SpectralLanes, LANES};
 use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDistribution};
 use super::trig::sin_cos_turns;
-use crate::atmosphere::AtmosphereParams;
 use crate::physics::{rayleigh, sun};
+use crate::plan::{TechniquePlan, MAX_BRANCHES, MAX_FORCED_COLLISION_DEPTH, MAX_SUNLIGHT_SAMPLES};
 use crate::rng::Rng;
 
 /// σ_s,R P_R + σ_s,A P_A of lane `j` at cosine `mu`, given the aerosol's
@@ -128,396 +129,6 @@ fn lane_scattering_phase(
 ) -> f64 {
     c.rayleigh[j] * rayleigh::phase(mu, lanes.rayleigh_gamma[j])
         + c.aerosol_scattering[j] * aerosol_phase
-}
-
-/// Switches for the variance-reduction techniques (each defaults to the best;
-/// the benchmark's ablation turns them off one at a time).
-#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
-#[serde(default, deny_unknown_fields)]
-pub struct IntegratorOptions {
-    /// Wavelengths carried per path, 1–4.
-    pub wavelengths_per_path: usize,
-    /// Shell-wise (tight) majorants; `false` uses one majorant for the whole atmosphere.
-    pub tight_majorants: bool,
-    /// Transmittance estimator for shadow rays.
-    pub shadow_transmittance: TransmittanceEstimator,
-    /// Next-event estimation toward the sun.
-    pub next_event_estimation: bool,
-    /// Next-event points on each camera ray, drawn from the expected
-    /// sunlight along it (tabulated per view direction, [`CameraDensities`];
-    /// stratified), 0–8; 0 = delta tracking on camera rays too. Unset (the
-    /// default): [`CAMERA_SAMPLES`], or [`SPLAT_CAMERA_SAMPLES`] where the
-    /// renderer splats along circles (`circle_splatting`, resolved by
-    /// `Renderer::new`); an integrator built directly reads unset as
-    /// [`CAMERA_SAMPLES`].
-    pub camera_samples: Option<u32>,
-    /// Paths the camera ray branches into at its segment (each from its own
-    /// point, drawn from the skylight part of the density, or ground bounce,
-    /// weighted 1/N), 1–8, with `camera_samples` > 0; default 4: the camera
-    /// segment's cost is shared by several estimates of the multiply
-    /// scattered light, which carries most of the variance.
-    pub camera_branches: u32,
-    /// Share of the points camera paths branch from drawn ∝ σ_s T × the
-    /// [`SkyGuide`]'s mean once-scattered radiance at the point (the light a
-    /// branch can expect to find there) instead of σ_s T, 0–1
-    /// ([`CameraDensities::with_importance`]). Unset (the default):
-    /// [`CAMERA_IMPORTANCE`] with the sun lower than
-    /// [`LOW_SUN_ELEVATION_DEG`], else 0 (see [`Self::resolved`]); read by
-    /// the renderer, which builds its camera densities with it.
-    pub camera_importance: Option<f64>,
-    /// Next-event points per path segment drawn from the expected-sunlight
-    /// density of [`super::sunlight`] (stratified; the path goes on from a
-    /// further point drawn from its skylight part), 0–8. 0 = delta tracking
-    /// with a next-event estimate at every tentative collision. Unset (the
-    /// default): the renderer picks 1 when the sun is lower than
-    /// [`LOW_SUN_ELEVATION_DEG`] above the observer's horizon, else 0 (see
-    /// [`Self::resolved`]); an integrator built directly reads unset as 0.
-    pub sunlight_samples: Option<u32>,
-    /// Share of scattering directions drawn from the phase function about
-    /// the sun's direction instead of the path's, 0–1. Unset (the default):
-    /// [`CONTROL_SUN_LOBE`] with the control variate on,
-    /// [`HIGH_SUN_LOBE`] with the sun higher than [`HIGH_SUN_ELEVATION_DEG`],
-    /// else [`SUN_LOBE`] (see [`Self::resolved`]); an integrator built
-    /// directly reads unset as [`SUN_LOBE`].
-    pub sun_lobe: Option<f64>,
-    /// Share of scattering directions drawn, at points in the planet's
-    /// shadow, from the table of incoming once-scattered light there
-    /// ([`SkyGuide`]) instead of the phase functions, 0–1. Unset (the
-    /// default): [`SHADOW_SKY_GUIDE`] with the sun below the horizon,
-    /// else [`SKY_GUIDE`] (see [`Self::resolved`]); an integrator built
-    /// directly reads unset as [`SKY_GUIDE`]. By day no vertex lies in the
-    /// shadow and nothing changes.
-    pub sky_guide: Option<f64>,
-    /// Whether [`Self::sky_guide`] also guides directions at sunlit points.
-    /// Unset (the default): with the sun lower than [`LOW_SUN_ELEVATION_DEG`]
-    /// (see [`Self::resolved`]), where the glow low over the sun's azimuth
-    /// holds much of the light even a sunlit vertex sees: at twilight and at
-    /// sunset 16 % less variance at about equal cost. By
-    /// day the phase function about the sun follows the aureole better than
-    /// the table's cells (guiding everywhere lost 1.2–1.6×, `BENCHMARKS.md`).
-    /// An integrator built directly reads unset as false.
-    pub sky_guide_sunlit: Option<bool>,
-    /// Next-event points on each path segment that starts in the planet's
-    /// shadow, drawn from the expected sunlight along it as tabulated by the
-    /// [`SkyGuide`] (the path goes on from its first real scattering), 0–8.
-    /// 0 (the default) = delta tracking there too. At twilight most vertices
-    /// lie in the shadow and the light they see comes from a thin sunlit
-    /// stretch that chance collisions rarely hit; the estimate finds it, but
-    /// its transmittance pass over the whole (often grazing) ray costs ~2.5×
-    /// a delta-tracked segment, more than the variance it saves.
-    pub shadow_samples: u32,
-    /// Delta-tracked path segments that start after 1 to this many
-    /// scatterings and leave the atmosphere force their first tentative
-    /// collision into the segment (weighted by its probability;
-    /// `Integrator::force_collision`), 0–64; 0 = off. Default 1, the
-    /// branches of camera paths: at midday it cuts the variance more than
-    /// the longer paths cost (time to equal noise 0.8×, `BENCHMARKS.md`);
-    /// forcing deeper segments too, or the continuations of low-sun segment
-    /// estimates, gained nothing more at midday and cost at sunset and
-    /// twilight.
-    pub forced_collision_depth: u32,
-    /// Russian roulette after the second scattering event.
-    pub russian_roulette: bool,
-    /// Adjoint-driven roulette and splitting (after Vorba and Křivánek
-    /// 2016) at the real scatterings of paths whose segments are estimated
-    /// through the guide's densities (`sunlight_samples` > 0): a path whose
-    /// expected light — its weight times the guide's mean once-scattered
-    /// radiance at the point ([`SkyGuide::skylight`]) — is several times
-    /// that at its start goes on as several copies, one below a quarter of
-    /// it plays roulette. Needs `russian_roulette`. Unset (the default):
-    /// on with the sun lower than [`SPLITTING_ELEVATION_DEG`] and
-    /// `russian_roulette` on (see
-    /// [`Self::resolved`]); an integrator built directly reads unset as off.
-    pub splitting: Option<bool>,
-    /// The once-scattered light as a control variate ([`super::control`]):
-    /// every real scattering adds the exact phase-function integral of a
-    /// tabulated approximation A of the once-scattered light arriving
-    /// there, and the path going on estimates only L − A, which lacks A's
-    /// sharp aureole and horizon. Unset (the default): on with the sun
-    /// between [`CONTROL_ELEVATION_DEG`]'s bounds above the observer's
-    /// horizon, where it wins at equal time, unless the haze is too thick
-    /// or its phase function too peaked for the table to hold the light
-    /// ([`control_table_holds`]: there it adds noise, in the thickest haze
-    /// by orders of magnitude); see [`Self::resolved`]. Set, it is
-    /// honoured (the CLI notes when it is set on in such haze). An
-    /// integrator built directly reads unset as off.
-    pub control_variate: Option<bool>,
-    /// Multiply scattered light splatted along the scene's circles of
-    /// symmetry ([`super::circles`]): the camera's own paths keep single
-    /// scattering and the ground's light, and paths started anywhere in the
-    /// visible air carry the rest to the pixels of 64 points on their
-    /// start's circle about the sun's axis. Needs `camera_samples` > 0,
-    /// `next_event_estimation` and the observer inside the atmosphere.
-    /// Unset (the default): on with the sun below
-    /// [`CIRCLE_SPLATTING_ELEVATION_DEG`] (see [`Self::resolved`]) and the
-    /// observer in the air; an integrator built directly reads unset as
-    /// off.
-    pub circle_splatting: Option<bool>,
-    /// How a pixel sample draws its first random numbers.
-    pub sampler: Sampler,
-    /// Keep only scattering orders up to this (for tests of single scattering;
-    /// `None` = all orders, the unbiased default).
-    pub max_scattering_order: Option<u32>,
-}
-
-impl Default for IntegratorOptions {
-    fn default() -> Self {
-        Self {
-            wavelengths_per_path: LANES,
-            tight_majorants: true,
-            shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
-            next_event_estimation: true,
-            camera_samples: None,
-            camera_branches: 4,
-            camera_importance: None,
-            sunlight_samples: None,
-            sun_lobe: None,
-            sky_guide: None,
-            sky_guide_sunlit: None,
-            shadow_samples: 0,
-            forced_collision_depth: 1,
-            russian_roulette: true,
-            splitting: None,
-            control_variate: None,
-            circle_splatting: None,
-            sampler: Sampler::Sobol,
-            max_scattering_order: None,
-        }
-    }
-}
-
-/// Below this sun elevation (at the observer) the renderer estimates every
-/// path segment through points drawn from its expected sunlight (one per
-/// segment, [`IntegratorOptions::sunlight_samples`]), above it by delta
-/// tracking. Measured at equal time (`bench --variants sunlight_samples=…`,
-/// `BENCHMARKS.md`), the segment estimates need 0.45–0.52× the
-/// time of delta tracking at −4°, 0.68–0.77× at 2°, 0.95–1.03× at 3°, but
-/// 1.11× at 5°, 1.13× at 6°, 1.38× at 10° and 1.4–1.6× at 15°, 20° and 45°:
-/// low down, most of the sky's light comes from thin sunlit stretches of
-/// long rays that chance collisions rarely hit.
-pub const LOW_SUN_ELEVATION_DEG: f64 = 3.0;
-
-/// [`IntegratorOptions::camera_importance`] with the sun lower than
-/// [`LOW_SUN_ELEVATION_DEG`]. Fixed passes (two 256×128 images of 8
-/// samples per pixel, seeds S and S + 1), noise against 0: at −4°
-/// (S = 1, 3, 5, 7) 0.88× (0.78× the variance), 0.3: 0.97×, 0.65: 0.89×;
-/// at −8° 0.62–0.75×, at −1° 0.95–0.98×, at 0.5° 0.97–0.99×, at 2° 1.00×
-/// over nine seeds (0.97–1.11); by day (45°) none; in the bench at −4° 0.83×
-/// the time to equal noise, at 2° even (`BENCHMARKS.md`).
-pub const CAMERA_IMPORTANCE: f64 = 0.5;
-
-/// [`IntegratorOptions::sun_lobe`] unless the sun is high or the control
-/// variate is on. The glow about
-/// the sun, hidden or low, holds much of the light a vertex sees: at
-/// twilight 0.15 instead needs 1.3× the time to equal noise.
-pub const SUN_LOBE: f64 = 0.3;
-/// [`IntegratorOptions::sun_lobe`] with the sun higher than
-/// [`HIGH_SUN_ELEVATION_DEG`]: at midday (45°) 0.1–0.2 leave 12 % less
-/// variance than 0.3 at equal time (the same seeds); at 20°,
-/// 10° (from orbit) and 2° the share made no difference beyond the noise.
-pub const HIGH_SUN_LOBE: f64 = 0.15;
-/// See [`HIGH_SUN_LOBE`].
-pub const HIGH_SUN_ELEVATION_DEG: f64 = 30.0;
-/// [`IntegratorOptions::sun_lobe`] with the control variate on: the
-/// control takes out the once-scattered light's aureole, which the lobe
-/// samples for, and leaves it nothing to find. Fixed passes at 0.5°, 2° and
-/// 2.9° (seeds 1 and 3): 0.84–0.90× the time to equal noise of 0.3
-/// (`BENCHMARKS.md`); without the control, at 5°, 0 needs 1.7×.
-pub const CONTROL_SUN_LOBE: f64 = 0.0;
-/// Sun elevations (at the observer, from, to) with
-/// [`IntegratorOptions::control_variate`] on by default. Measured at fixed
-/// passes (`BENCHMARKS.md`): at 2° 0.68–0.69× the variance for
-/// 1.18–1.21× the time (0.5°: 0.69×, 2.9°: 0.62×); at −1°, 5° and 10°
-/// 0.85–0.87×, no more than it costs; at −4° and 45° nothing.
-pub const CONTROL_ELEVATION_DEG: (f64, f64) = (0.0, LOW_SUN_ELEVATION_DEG);
-/// Largest vertical aerosol optical depth at 550 nm
-/// ([`AtmosphereParams::aerosol_optical_depth`]) with
-/// [`IntegratorOptions::control_variate`] on by default. The table holds the
-/// once-scattered light at 12 altitudes and 8 wavelengths, and a point
-/// takes a neighbour's; half the aerosol column lies between the two lowest
-/// (174 m and 1.56 km: 0.12 of 0.249 at amount 1), so in thick haze the
-/// light it holds changes by orders of magnitude from one cell to the next
-/// (amount 100: 1.6 × 10⁻¹⁴, 2.9 × 10⁻⁹ and 1.1 × 10⁻⁶ per unit
-/// irradiance at 174 m, 1.56 km and 4.3 km), and deep in it the light is
-/// mostly scattered many times, which the table does not hold. Measured on
-/// the sunset scene (32 × 16, 8 passes, 10 seeds each way; median over
-/// pixels of the variance with the control over that without, which has to
-/// be below ~0.83 to pay for its 1.2× time): at g = 0.7 and optical depth
-/// 0.25 (the default haze) 0.88 (0.68–0.69 in longer runs, above); at 0.75,
-/// 2.5, 3.7, 4.0 and 5: 0.44–0.58; at 7.5: 0.58–0.73 (0.5°, 2°, 2.9°); at
-/// 8.7: 0.93–1.41; at 9.9: 1.29; at 12.4: 1.37–3.85; at 24.9 (amount 100,
-/// the range's top): 123, with negative pixels beyond their noise (g = 0:
-/// 283). At g = 0.8 it is lost sooner: 0.54–0.75 up to 4.0 (once 1.22), 1.15
-/// at 5, 1.50 at 7.5. A finer table does not rescue it: with 48 altitudes
-/// and 32 wavelengths, amount 100 at g = 0.7 stayed at 173 (48 altitudes
-/// alone took g = 0 from 283 to 4–7).
-pub const CONTROL_MAX_AEROSOL_DEPTH: f64 = 4.0;
-/// Aerosol asymmetry parameters g (from, to) with
-/// [`IntegratorOptions::control_variate`] on by default where there are
-/// aerosols. The expansion stops at degree [`super::control::L_MAX`] = 8,
-/// and a Henyey–Greenstein aureole keeps 1.2 % of its squared norm (Σ (2l+1)
-/// g^2l) beyond it at g = 0.7, 9 % at 0.8, 21 % at 0.85, 43 % at 0.9: the
-/// expansion rings about the sun and misses the peak, which the paths must
-/// then find without the sun lobe ([`CONTROL_SUN_LOBE`]). Measured as for
-/// [`CONTROL_MAX_AEROSOL_DEPTH`], at amount 1 (optical depth 0.25): g = 0.75
-/// 0.80, 0.8 0.66, 0.85 0.83, 0.9 1.20, 0.95 2.07, 0.99 2.15; at depth 2.5:
-/// 0.8 0.75, 0.85 1.05, 0.9 2.37, 0.99 932. Backscattering haze loses it in
-/// depth: at 3.7–4.0, g = −0.25 0.99, −0.5 0.88, −0.75 2.1, −0.8 3.9 (at
-/// 0.25, −0.75 0.72, −0.99 4.7).
-pub const CONTROL_AEROSOL_G: (f64, f64) = (-0.5, 0.8);
-
-/// Whether the control variate's table holds the once-scattered light well
-/// enough in `atmosphere`'s haze to pay for itself: an aerosol column no
-/// deeper than [`CONTROL_MAX_AEROSOL_DEPTH`] at 550 nm, and g within
-/// [`CONTROL_AEROSOL_G`] (or no aerosols; g as [`control_aerosol_g`]
-/// takes it: the measurements above are in Henyey–Greenstein's g, and for
-/// a double Henyey–Greenstein or a table the mean cosine measures the
-/// forward peak whose share beyond the expansion's degree is at stake).
-/// Either way the estimate stays unbiased (the phase function's Legendre
-/// moments are exact, `PhaseFunction::legendre_moments`): only the noise
-/// is.
-pub fn control_table_holds(atmosphere: &AtmosphereParams) -> bool {
-    let depth = atmosphere.aerosol_optical_depth(550.0);
-    depth == 0.0
-        || (depth <= CONTROL_MAX_AEROSOL_DEPTH
-            && (CONTROL_AEROSOL_G.0..=CONTROL_AEROSOL_G.1).contains(&control_aerosol_g(atmosphere)))
-}
-
-/// The g that [`control_table_holds`] compares with [`CONTROL_AEROSOL_G`]:
-/// Henyey–Greenstein's and Cornette–Shanks' parameter, the other phase
-/// functions' mean cosine (NaN where the phase function cannot be built).
-pub fn control_aerosol_g(atmosphere: &AtmosphereParams) -> f64 {
-    use crate::physics::aerosol::PhaseFunction;
-    match atmosphere.aerosol_phase_function() {
-        Ok(PhaseFunction::HenyeyGreenstein { g } | PhaseFunction::CornetteShanks { g }) => g,
-        Ok(phase) => phase.mean_cosine(),
-        Err(_) => f64::NAN,
-    }
-}
-
-/// Below this sun elevation (at the observer) [`IntegratorOptions::splitting`]
-/// is on by default.
-pub const SPLITTING_ELEVATION_DEG: f64 = 0.0;
-/// Below this sun elevation (at the observer)
-/// [`IntegratorOptions::circle_splatting`] is on by default. With the
-/// positions drawn by the phase function (`BENCHMARKS.md`), the
-/// camera's own branches need 1.3–2.3× the time at twilight (−4°, four bench
-/// seeds) and 1.09–1.11× at sunset (2°, three seeds); fixed-pass pairs of
-/// the sunset scene at other elevations, splatting's noise² × CPU time
-/// against the branches': 2° 0.78–0.82, 6° 0.76–0.94, 12° 0.97, 20° 1.29;
-/// at midday (45°) the bench's variant needs 2.1× the time.
-pub const CIRCLE_SPLATTING_ELEVATION_DEG: f64 = 10.0;
-/// [`IntegratorOptions::sky_guide`] with the sun above the horizon: at
-/// twilight before roulette and splitting, 0.74–0.90× the time to equal
-/// noise of none (two seed pairs; 0.15 and 0.35 alike, 0.5 no
-/// better than none); at sunset, with the control variate, 0.15 and 0.35
-/// need 1.02–1.09× its time (`BENCHMARKS.md`).
-pub const SKY_GUIDE: f64 = 0.25;
-/// [`IntegratorOptions::sky_guide`] with the sun below the horizon
-/// ([`SPLITTING_ELEVATION_DEG`]): with roulette and splitting on, twilight
-/// (−4°) needs 0.94× the time to equal noise of 0.25 (7 seeds, 0.86–1.05;
-/// 0.4: 0.96×, 0.15: 1.15–1.20×; `BENCHMARKS.md`).
-pub const SHADOW_SKY_GUIDE: f64 = 0.35;
-
-impl IntegratorOptions {
-    /// Next-event points per camera ray ([`Self::camera_samples`]; unset =
-    /// [`CAMERA_SAMPLES`]).
-    pub fn camera_samples(&self) -> u32 {
-        self.camera_samples.unwrap_or(CAMERA_SAMPLES)
-    }
-
-    /// Next-event points per segment ([`Self::sunlight_samples`]; unset = 0).
-    pub fn sunlight_samples(&self) -> u32 {
-        self.sunlight_samples.unwrap_or(0)
-    }
-
-    /// Share of directions from the guide's table ([`Self::sky_guide`];
-    /// unset = [`SKY_GUIDE`]).
-    pub fn sky_guide(&self) -> f64 {
-        self.sky_guide.unwrap_or(SKY_GUIDE)
-    }
-
-    /// Share of camera branch points by importance
-    /// ([`Self::camera_importance`]; unset = 0).
-    pub fn camera_importance(&self) -> f64 {
-        self.camera_importance.unwrap_or(0.0)
-    }
-
-    /// Share of directions about the sun's ([`Self::sun_lobe`]; unset =
-    /// [`SUN_LOBE`]).
-    pub fn sun_lobe(&self) -> f64 {
-        self.sun_lobe.unwrap_or(SUN_LOBE)
-    }
-
-    /// These options with every unset choice made for a scene whose sun
-    /// stands `sun_elevation_deg` above the observer's horizon, in
-    /// `atmosphere`.
-    #[must_use]
-    pub fn resolved(&self, sun_elevation_deg: f64, atmosphere: &AtmosphereParams) -> Self {
-        // The elevation thresholds were measured on the Earth's scenes. On
-        // another planet (Mars) they still choose among unbiased
-        // estimators: the expected image is the same, only the noise may be
-        // further from the least.
-        let low_sun = sun_elevation_deg < LOW_SUN_ELEVATION_DEG;
-        let high_sun = sun_elevation_deg > HIGH_SUN_ELEVATION_DEG;
-        let control = self.control_variate.unwrap_or(
-            (CONTROL_ELEVATION_DEG.0..CONTROL_ELEVATION_DEG.1).contains(&sun_elevation_deg)
-                && control_table_holds(atmosphere),
-        );
-        Self {
-            sunlight_samples: Some(self.sunlight_samples.unwrap_or(u32::from(low_sun))),
-            camera_importance: Some(self.camera_importance.unwrap_or(if low_sun {
-                CAMERA_IMPORTANCE
-            } else {
-                0.0
-            })),
-            sky_guide: Some(self.sky_guide.unwrap_or(
-                if sun_elevation_deg < SPLITTING_ELEVATION_DEG {
-                    SHADOW_SKY_GUIDE
-                } else {
-                    SKY_GUIDE
-                },
-            )),
-            sky_guide_sunlit: Some(self.sky_guide_sunlit.unwrap_or(low_sun)),
-            // Splitting needs roulette (the scene refuses one without the
-            // other); unset, it follows it.
-            splitting: Some(
-                self.splitting.unwrap_or(
-                    self.russian_roulette && sun_elevation_deg < SPLITTING_ELEVATION_DEG,
-                ),
-            ),
-            control_variate: Some(control),
-            circle_splatting: Some(
-                self.circle_splatting
-                    .unwrap_or(sun_elevation_deg < CIRCLE_SPLATTING_ELEVATION_DEG),
-            ),
-            sun_lobe: Some(self.sun_lobe.unwrap_or(if control {
-                CONTROL_SUN_LOBE
-            } else if high_sun {
-                HIGH_SUN_LOBE
-            } else {
-                SUN_LOBE
-            })),
-            ..self.clone()
-        }
-    }
-}
-
-/// How a pixel sample draws its random numbers.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum Sampler {
-    /// The first 32 uniforms of each pass from an Owen-scrambled Sobol
-    /// point, per pixel ([`crate::rng`]): the pixel position, the camera
-    /// ray's scattering points and the first scattering directions are
-    /// stratified across passes (per-path variance 8–18 % lower,
-    /// `BENCHMARKS.md`); the points splatted along circles take a pass's
-    /// Sobol points in turn (their wavelengths, points and first
-    /// directions stratified across the pass; sunset 7 % less variance).
-    #[default]
-    Sobol,
-    /// Every uniform independent (PCG).
-    Independent,
 }
 
 /// Uniforms a scattering direction draws ([`Integrator::sample_scatter_direction`]
@@ -554,7 +165,7 @@ impl std::ops::DerefMut for Light {
 
 /// Scattering vertices become paths longer than this only through Russian
 /// roulette with survival ≤ 0.9, so paths end with probability one.
-const ROULETTE_CAP_DEPTH: u32 = 64;
+const ROULETTE_CAP_DEPTH: u32 = MAX_FORCED_COLLISION_DEPTH;
 /// Russian roulette leaves a path alone until its weight, relative to where
 /// it started, falls below this; survivors carry this weight. At 1 (roulette
 /// on any loss), a ground bounce of albedo 0.3 killed 70 % of the paths and
@@ -574,31 +185,12 @@ const MAX_SPLIT: usize = 4;
 /// in the twilight preset it binds for about 1 camera path in 100, and the
 /// noise is unchanged (`BENCHMARKS.md`).
 const MAX_COPIES: usize = 256;
-/// Largest [`IntegratorOptions::forced_collision_depth`] accepted (the
-/// depth past which roulette caps survival at 0.9).
-pub const MAX_FORCED_COLLISION_DEPTH: u32 = ROULETTE_CAP_DEPTH;
-/// Most in-scattering points on one segment.
-pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
 
-/// Next-event points per camera ray by default: against 1, 7.5 % less
-/// variance at midday for 1.5 % more time, 6 % and 4 % less from orbit and
-/// at sunset, the same at twilight (before splatting).
-pub const CAMERA_SAMPLES: u32 = 2;
-
-/// Next-event points per camera ray by default where the renderer splats
-/// along circles: the camera's paths then carry single scattering (and
-/// the ground's light) only, whose variance is per point (4× the points:
-/// 3.5× less of it at twilight), while the points cost little beside the
-/// splats. Against 2, at equal passes, 22 % less variance at twilight and
-/// 13 % at sunset; noise² × CPU time 0.89× and 0.84×.
-pub const SPLAT_CAMERA_SAMPLES: u32 = 8;
 /// Zenith × azimuth strata of the directions a control cell is projected
 /// from.
 const CONTROL_DIRECTIONS: (usize, usize) = (32, 16);
 /// Seed of the control cells' own random numbers.
 const CONTROL_SEED: u64 = 0xc047_a01e;
-/// Most branches of a camera path.
-pub const MAX_BRANCHES: usize = 8;
 
 /// Where a path stands in roulette and splitting by importance
 /// ([`Integrator::weight_window`]).
@@ -636,7 +228,7 @@ const SURFACE_OFFSET_M: f64 = 1e-3;
 /// Everything the integrator needs about one scene.
 pub struct Integrator<'a> {
     pub medium: &'a Medium,
-    pub options: &'a IntegratorOptions,
+    pub plan: &'a TechniquePlan,
     pub sun_direction: DVec3,
     cos_sun_radius: f64,
     sun_solid_angle_sr: f64,
@@ -700,15 +292,15 @@ impl SegmentDensity for CachedRayDensity<'_> {
 }
 
 impl<'a> Integrator<'a> {
-    pub fn new(medium: &'a Medium, options: &'a IntegratorOptions, sun_direction: DVec3) -> Self {
+    pub fn new(medium: &'a Medium, plan: &'a TechniquePlan, sun_direction: DVec3) -> Self {
         Self {
             medium,
-            options,
+            plan,
             sun_direction,
             cos_sun_radius: sun::ANGULAR_RADIUS_DEG.to_radians().cos(),
             sun_solid_angle_sr: sun::solid_angle_sr(),
             sun_frame: orthonormal_basis(sun_direction),
-            bounds: if options.tight_majorants {
+            bounds: if plan.segments.tight_majorants {
                 Bounds::Tight
             } else {
                 Bounds::Global
@@ -722,12 +314,11 @@ impl<'a> Integrator<'a> {
     }
 
     /// Uses `table` as the diffuse light's control variate where the
-    /// options turn it on ([`IntegratorOptions::control_variate`]; never
+    /// options turn it on ([`crate::plan::IntegratorOptions::control_variate`]; never
     /// with `max_scattering_order`, whose orders it would mix).
     #[must_use]
     pub fn with_control(mut self, table: &'a RadianceTable) -> Self {
-        if self.options.control_variate == Some(true) && self.options.max_scattering_order.is_none()
-        {
+        if self.plan.control_variate {
             self.control = Some(table);
         }
         self
@@ -792,12 +383,8 @@ impl<'a> Integrator<'a> {
     /// numbers are the cell's own, so the table does not depend on the
     /// render's.
     fn project_cell(&self, table: &RadianceTable, i: usize, k: usize) -> CellCoefficients {
-        let options = IntegratorOptions {
-            control_variate: Some(false),
-            max_scattering_order: Some(2),
-            ..self.options.clone()
-        };
-        let mut single = Integrator::new(self.medium, &options, self.sun_direction);
+        let plan = self.plan.for_control_table();
+        let mut single = Integrator::new(self.medium, &plan, self.sun_direction);
         single.guide = self.guide;
         let origin = table.cell_point(i, k);
         let frame = table.frame(origin);
@@ -820,7 +407,7 @@ impl<'a> Integrator<'a> {
                 for (set, lanes) in sets.iter().enumerate() {
                     let mut radiance = Light::default();
                     let from = (origin, dir, 1, 1.0);
-                    if options.sunlight_samples() > 0 && single.guide.is_some() {
+                    if plan.segments.sunlight_samples > 0 && single.guide.is_some() {
                         single.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
                     } else {
                         single.trace(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
@@ -848,7 +435,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Uses `guide` for scattering directions (see
-    /// [`IntegratorOptions::sky_guide`]) and for the distance densities of
+    /// [`crate::plan::IntegratorOptions::sky_guide`]) and for the distance densities of
     /// `Self::trace_sunlit`'s segments.
     #[must_use]
     pub fn with_sky_guide(mut self, guide: &'a SkyGuide) -> Self {
@@ -857,7 +444,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Uses `camera` for rays that start at its observer (see
-    /// [`IntegratorOptions::camera_samples`]).
+    /// [`crate::plan::IntegratorOptions::camera_samples`]).
     #[must_use]
     pub fn with_camera_densities(mut self, camera: &'a CameraDensities) -> Self {
         self.camera = Some(camera);
@@ -899,7 +486,7 @@ impl<'a> Integrator<'a> {
             origin,
             dir,
             lanes,
-            self.options.shadow_transmittance,
+            self.plan.segments.shadow_transmittance,
             self.bounds,
             rng,
         )
@@ -951,12 +538,12 @@ impl<'a> Integrator<'a> {
     /// same path.
     pub fn light(&self, origin: DVec3, dir: DVec3, lanes: &SpectralLanes, rng: &mut Rng) -> Light {
         let mut radiance = Light::default();
-        let opts = self.options;
+        let opts = self.plan;
         let camera = self
             .camera
-            .filter(|c| opts.camera_samples() > 0 && c.origin_m() == origin);
+            .filter(|c| opts.camera.samples > 0 && c.origin_m() == origin);
         match camera {
-            Some(camera) if opts.next_event_estimation => {
+            Some(camera) if opts.segments.next_event_estimation => {
                 let branches = self.camera_segment(camera, dir, lanes, &mut radiance, rng);
                 // A branch's weight is the chance that light scattered there
                 // at all (forced, not sampled) over the branch count, which
@@ -966,14 +553,14 @@ impl<'a> Integrator<'a> {
                     let start = beta[..lanes.active].iter().copied().fold(0.0, f64::max);
                     let scale = if start > 0.0 { 1.0 / start } else { 1.0 };
                     let from = (x, new_dir, 1, scale);
-                    if opts.sunlight_samples() > 0 {
+                    if opts.segments.sunlight_samples > 0 {
                         self.trace_sunlit(from, beta, lanes, &mut radiance, rng);
                     } else {
                         self.trace(from, beta, lanes, &mut radiance, rng);
                     }
                 }
             }
-            _ if opts.sunlight_samples() > 0 && opts.next_event_estimation => {
+            _ if opts.segments.sunlight_samples > 0 && opts.segments.next_event_estimation => {
                 let from = (origin, dir, 0, 1.0);
                 self.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, rng);
             }
@@ -1008,11 +595,15 @@ impl<'a> Integrator<'a> {
         if camera_dirs.is_empty() {
             return None;
         }
-        let opts = self.options;
+        let opts = self.plan;
         let at = self.direction_guide(x);
         let guides = at.as_ref().is_some_and(GuideAt::guides);
-        let g = if guides { opts.sky_guide() } else { 0.0 };
-        let alpha = opts.sun_lobe();
+        let g = if guides {
+            opts.directions.sky_guide
+        } else {
+            0.0
+        };
+        let alpha = opts.directions.sun_lobe;
         let dir = match at.as_ref() {
             Some(guide) if guides && rng.uniform() < g => guide.sample(rng).0,
             _ if rng.uniform() < alpha => {
@@ -1032,7 +623,7 @@ impl<'a> Integrator<'a> {
         let pdf = self.direction_mixture_pdf(c, lanes, dir, lobes, at.as_ref().filter(|_| guides));
         let mut radiance = Light::default();
         let start = (x, dir, 1, 1.0);
-        if opts.sunlight_samples() > 0 {
+        if opts.segments.sunlight_samples > 0 {
             self.trace_sunlit(start, [1.0; LANES], lanes, &mut radiance, rng);
         } else {
             self.trace(start, [1.0; LANES], lanes, &mut radiance, rng);
@@ -1057,7 +648,7 @@ impl<'a> Integrator<'a> {
             dir,
             t_m,
             lanes,
-            self.options.shadow_transmittance,
+            self.plan.segments.shadow_transmittance,
             self.bounds,
             rng,
         );
@@ -1084,7 +675,7 @@ impl<'a> Integrator<'a> {
             dir,
             span,
             lanes,
-            self.options.shadow_transmittance,
+            self.plan.segments.shadow_transmittance,
             self.bounds,
             &mut points,
             false,
@@ -1112,14 +703,14 @@ impl<'a> Integrator<'a> {
             return [None; MAX_BRANCHES];
         };
         let density = camera.density(self.medium, dir, span);
-        let n = (self.options.camera_samples() as usize).min(MAX_SUNLIGHT_SAMPLES);
+        let n = (self.plan.camera.samples as usize).min(MAX_SUNLIGHT_SAMPLES);
         let segment = Segment {
             origin,
             dir,
             span,
             depth: 0,
         };
-        let branches = (self.options.camera_branches as usize).clamp(1, MAX_BRANCHES);
+        let branches = (self.plan.camera.branches as usize).clamp(1, MAX_BRANCHES);
         self.estimate_segment(
             &segment,
             &beta,
@@ -1172,7 +763,7 @@ impl<'a> Integrator<'a> {
     /// to a constant: the guide's mean once-scattered radiance there.
     fn importance(&self, x: DVec3) -> Option<f64> {
         self.guide
-            .filter(|_| self.options.russian_roulette && self.options.splitting == Some(true))
+            .filter(|_| self.plan.termination.russian_roulette && self.plan.termination.splitting)
             .map(|g| g.skylight(self.medium, x))
             .filter(|&s| s > 0.0 && s.is_finite())
     }
@@ -1211,7 +802,7 @@ impl<'a> Integrator<'a> {
                             // Without the guide's importance: roulette as
                             // for any other vertex.
                             let (new_dir, at) = self.scatter(x, dir_in, &c, &mut beta, lanes, rng);
-                            if self.options.russian_roulette
+                            if self.plan.termination.russian_roulette
                                 && depth >= 2
                                 && !survives_roulette(&mut beta, lanes.active, depth, split, rng)
                             {
@@ -1282,7 +873,7 @@ impl<'a> Integrator<'a> {
         rng: &mut Rng,
     ) {
         if let Some(Next::Vertex((_, _, beta))) = next {
-            if self.options.russian_roulette
+            if self.plan.termination.russian_roulette
                 && depth >= 2
                 && !survives_roulette(beta, lanes.active, depth, split, rng)
             {
@@ -1364,10 +955,10 @@ impl<'a> Integrator<'a> {
             let at = at.unwrap_or_else(|| guide.at(self.medium, origin));
             return self.guided_segment(&at, &segment, beta, lanes, radiance, rng);
         }
-        let opts = self.options;
-        let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
+        let opts = self.plan;
+        let max_order = opts.termination.max_scattering_order;
         let span = segment.span;
-        let n = (opts.sunlight_samples() as usize).min(MAX_SUNLIGHT_SAMPLES);
+        let n = (opts.segments.sunlight_samples as usize).min(MAX_SUNLIGHT_SAMPLES);
         if depth >= max_order {
             return self.estimate_segment(&segment, beta, None, (0, 1), lanes, radiance, rng)[0]
                 .map(Next::Vertex);
@@ -1410,8 +1001,8 @@ impl<'a> Integrator<'a> {
         radiance: &mut Light,
         rng: &mut Rng,
     ) -> Branches {
-        let opts = self.options;
-        let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
+        let opts = self.plan;
+        let max_order = opts.termination.max_scattering_order;
         let &Segment {
             origin,
             dir,
@@ -1436,7 +1027,9 @@ impl<'a> Integrator<'a> {
             }
             // Without Russian roulette the path must still end: go on with
             // the expected scattered fraction, as an analog path would.
-            (Some(d), true) if !opts.russian_roulette => d.shares(0.0).0.clamp(0.05, 1.0),
+            (Some(d), true) if !opts.termination.russian_roulette => {
+                d.shares(0.0).0.clamp(0.05, 1.0)
+            }
             (Some(_), true) => 1.0,
             _ => 0.0,
         };
@@ -1491,7 +1084,7 @@ impl<'a> Integrator<'a> {
             dir,
             span,
             lanes,
-            opts.shadow_transmittance,
+            opts.segments.shadow_transmittance,
             self.bounds,
             &mut points[..m],
             to_end,
@@ -1609,9 +1202,10 @@ impl<'a> Integrator<'a> {
     ) -> Option<Next<'a>> {
         let density = at.density(self.medium, segment.dir, segment.span);
         let n = (self
-            .options
-            .sunlight_samples()
-            .max(self.options.shadow_samples) as usize)
+            .plan
+            .segments
+            .sunlight_samples
+            .max(self.plan.segments.shadow_samples) as usize)
             .min(MAX_SUNLIGHT_SAMPLES);
         self.estimate_segment(segment, beta, Some(&density), (n, 0), lanes, radiance, rng);
         self.track_continuation(segment, beta, lanes, radiance, rng)
@@ -1635,7 +1229,7 @@ impl<'a> Integrator<'a> {
             span,
             depth,
         } = segment;
-        let max_order = self.options.max_scattering_order.unwrap_or(u32::MAX);
+        let max_order = self.plan.termination.max_scattering_order;
         if depth + 1 >= max_order {
             return None;
         }
@@ -1682,7 +1276,7 @@ impl<'a> Integrator<'a> {
     }
 
     /// Forced collision: on a segment that leaves the atmosphere after
-    /// `depth` ≤ [`IntegratorOptions::forced_collision_depth`] scatterings,
+    /// `depth` ≤ [`crate::plan::IntegratorOptions::forced_collision_depth`] scatterings,
     /// conditions `tracker`'s first tentative collision on lying within the
     /// segment and weights `beta` by the chance that it would, 1 − exp(−τ̄).
     /// Unbiased where a path that escapes adds nothing: next-event estimates
@@ -1698,7 +1292,7 @@ impl<'a> Integrator<'a> {
         beta: &mut Lanes,
         rng: &mut Rng,
     ) {
-        if depth == 0 || depth > self.options.forced_collision_depth || span.hits_ground {
+        if depth == 0 || depth > self.plan.segments.forced_collision_depth || span.hits_ground {
             return;
         }
         let p = tracker.force_collision(rng);
@@ -1762,7 +1356,7 @@ impl<'a> Integrator<'a> {
         rng: &mut Rng,
     ) -> Option<Vertex> {
         self.ground_direct(normal, depth, beta, lanes, radiance, rng);
-        let max_order = self.options.max_scattering_order.unwrap_or(u32::MAX);
+        let max_order = self.plan.termination.max_scattering_order;
         if depth + 1 >= max_order || self.medium.ground_albedo_max <= 0.0 {
             return None;
         }
@@ -1785,10 +1379,10 @@ impl<'a> Integrator<'a> {
         radiance: &mut Light,
         rng: &mut Rng,
     ) {
-        let opts = self.options;
-        let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
+        let opts = self.plan;
+        let max_order = opts.termination.max_scattering_order;
         let x = ground_point(self.medium, normal);
-        if opts.next_event_estimation && depth < max_order {
+        if opts.segments.next_event_estimation && depth < max_order {
             let to_sun = self.sample_sun_direction(rng);
             let cos = normal.dot(to_sun);
             if cos > 0.0 {
@@ -1802,22 +1396,23 @@ impl<'a> Integrator<'a> {
     }
 
     /// The guide at `x` where it draws scattering directions there
-    /// ([`IntegratorOptions::sky_guide`], at sunlit points only with
-    /// [`IntegratorOptions::sky_guide_sunlit`]).
+    /// ([`crate::plan::IntegratorOptions::sky_guide`], at sunlit points only with
+    /// [`crate::plan::IntegratorOptions::sky_guide_sunlit`]).
     fn direction_guide(&self, x: DVec3) -> Option<GuideAt<'a>> {
-        let opts = self.options;
+        let opts = self.plan;
         self.guide
             .filter(|g| {
-                opts.sky_guide() > 0.0 && (opts.sky_guide_sunlit.unwrap_or(false) || g.shadowed(x))
+                opts.directions.sky_guide > 0.0
+                    && (opts.directions.sky_guide_sunlit || g.shadowed(x))
             })
             .map(|g| g.at(self.medium, x))
     }
 
     /// Density (sr⁻¹) of `dir` under the scattering directions' mixture:
     /// `phase` (the phase-function part's density, already evaluated),
-    /// mixed with the lobe about the sun ([`IntegratorOptions::sun_lobe`])
+    /// mixed with the lobe about the sun ([`crate::plan::IntegratorOptions::sun_lobe`])
     /// and, where `guide` is given, the guide's table
-    /// ([`IntegratorOptions::sky_guide`]).
+    /// ([`crate::plan::IntegratorOptions::sky_guide`]).
     fn direction_mixture_pdf(
         &self,
         c: &super::medium::Coefficients,
@@ -1826,7 +1421,7 @@ impl<'a> Integrator<'a> {
         phase: f64,
         guide: Option<&GuideAt<'_>>,
     ) -> f64 {
-        let alpha = self.options.sun_lobe();
+        let alpha = self.plan.directions.sun_lobe;
         let pdf = if alpha > 0.0 {
             let lobe = self.phase_mixture_pdf(c, lanes, self.sun_direction.dot(dir));
             (1.0 - alpha) * phase + alpha * lobe
@@ -1835,7 +1430,7 @@ impl<'a> Integrator<'a> {
         };
         match guide {
             Some(guide) => {
-                let g = self.options.sky_guide();
+                let g = self.plan.directions.sky_guide;
                 (1.0 - g) * pdf + g * guide.pdf(dir)
             }
             None => pdf,
@@ -1862,11 +1457,11 @@ impl<'a> Integrator<'a> {
         let mut at = self.direction_guide(x);
         let guides = at.as_ref().is_some_and(GuideAt::guides);
         let g = if guides {
-            self.options.sky_guide()
+            self.plan.directions.sky_guide
         } else {
             0.0
         };
-        let alpha = self.options.sun_lobe();
+        let alpha = self.plan.directions.sun_lobe;
         let (new_dir, cell) = match at.as_ref() {
             Some(guide) if guides && rng.uniform() < g => {
                 let (new_dir, cell) = guide.sample(rng);
@@ -1913,12 +1508,12 @@ impl<'a> Integrator<'a> {
         rng: &mut Rng,
     ) {
         let active = lanes.active;
-        let opts = self.options;
+        let opts = self.plan;
         let mut beta = beta;
         let mut origin = origin;
         let mut dir = dir;
         let mut depth = depth;
-        let max_order = opts.max_scattering_order.unwrap_or(u32::MAX);
+        let max_order = opts.termination.max_scattering_order;
 
         loop {
             let mut scattered = false;
@@ -1926,8 +1521,8 @@ impl<'a> Integrator<'a> {
             let mut control = None;
             let shadowed = self
                 .guide
-                .filter(|g| opts.shadow_samples > 0 && depth > 0 && g.shadowed(origin));
-            if let (Some(guide), true) = (shadowed, opts.next_event_estimation) {
+                .filter(|g| opts.segments.shadow_samples > 0 && depth > 0 && g.shadowed(origin));
+            if let (Some(guide), true) = (shadowed, opts.segments.next_event_estimation) {
                 // A segment from the planet's shadow: its sunlit stretch is
                 // found by the guide's density, not by chance collisions.
                 let next = self
@@ -1944,7 +1539,7 @@ impl<'a> Integrator<'a> {
                 scattered = true;
             } else if let Some(span) = self.medium.span(origin, dir) {
                 let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
-                if depth > 0 && opts.next_event_estimation {
+                if depth > 0 && opts.segments.next_event_estimation {
                     self.force_collision(&mut tracker, span, depth, &mut beta, rng);
                 }
                 while let Some(collision) = tracker.next(rng) {
@@ -1953,7 +1548,7 @@ impl<'a> Integrator<'a> {
                     let majorant = collision.majorant;
                     // A next-event estimate at a vertex after `depth` real
                     // scatterings adds scattering order depth + 1.
-                    if opts.next_event_estimation && depth < max_order {
+                    if opts.segments.next_event_estimation && depth < max_order {
                         let to_sun = self.sample_sun_direction(rng);
                         let mu = dir.dot(to_sun);
                         let tr = self.shadow(x, to_sun, lanes, rng);
@@ -1996,13 +1591,13 @@ impl<'a> Integrator<'a> {
             if !scattered {
                 // Escaped to space. The disc is counted here only where no
                 // next-event estimate already accounted for it.
-                if depth == 0 || !opts.next_event_estimation {
+                if depth == 0 || !opts.segments.next_event_estimation {
                     self.add_sun_disc(dir, depth, &beta, lanes, radiance);
                 }
                 break;
             }
             // Russian roulette on the largest lane weight.
-            if opts.russian_roulette && depth >= 2 {
+            if opts.termination.russian_roulette && depth >= 2 {
                 if !survives_roulette(&mut beta, active, depth, split, rng) {
                     break;
                 }
@@ -2099,18 +1694,6 @@ fn real_scattering(
     false
 }
 
-/// Two unit vectors completing `n` to a right-handed orthonormal basis
-/// (Duff et al. 2017, "Building an Orthonormal Basis, Revisited").
-pub fn orthonormal_basis(n: DVec3) -> (DVec3, DVec3) {
-    let sign = 1f64.copysign(n.z);
-    let a = -1.0 / (sign + n.z);
-    let b = n.x * n.y * a;
-    (
-        DVec3::new(1.0 + sign * n.x * n.x * a, sign * b, -sign * n.x),
-        DVec3::new(b, sign + n.y * n.y * a, -n.y),
-    )
-}
-
 /// The ground vertex under unit `normal`, just above the surface.
 fn ground_point(medium: &Medium, normal: DVec3) -> DVec3 {
     normal * (medium.planet_radius_m + SURFACE_OFFSET_M)
@@ -2128,6 +1711,7 @@ fn cosine_sample_hemisphere(normal: DVec3, rng: &mut Rng) -> DVec3 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::plan::IntegratorOptions;
 
     #[test]
     fn sun_directions_are_unit_and_uniform_over_the_disc() {
@@ -2138,7 +1722,7 @@ mod tests {
         let atmosphere =
             crate::atmosphere::Atmosphere::new(crate::atmosphere::AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
-        let options = IntegratorOptions::default();
+        let plan = TechniquePlan::outside_a_scene(&IntegratorOptions::default());
         let mut rng = Rng::new(3, 4);
         for (az, el) in [
             (0.0, 90.0),
@@ -2148,7 +1732,7 @@ mod tests {
             (200.0, -90.0),
         ] {
             let sun = super::super::direction_from_az_el(az, el);
-            let integrator = Integrator::new(&medium, &options, sun);
+            let integrator = Integrator::new(&medium, &plan, sun);
             let cos_radius = integrator.cos_sun_radius;
             let cos_half = 1.0 - 0.5 * (1.0 - cos_radius);
             let n = 20_000;
@@ -2169,186 +1753,17 @@ mod tests {
     }
 
     #[test]
-    fn unset_choices_follow_the_sun_and_set_ones_stay() {
-        let auto = IntegratorOptions::default();
-        let haze = AtmosphereParams::default();
-        assert_eq!(
-            (
-                auto.sunlight_samples,
-                auto.sun_lobe,
-                auto.sky_guide_sunlit,
-                auto.splitting,
-                auto.control_variate,
-                auto.sky_guide,
-                auto.camera_importance
-            ),
-            (None, None, None, None, None, None, None)
-        );
-        assert_eq!(
-            (
-                auto.sunlight_samples(),
-                auto.sun_lobe(),
-                auto.sky_guide(),
-                auto.camera_importance()
-            ),
-            (0, SUN_LOBE, SKY_GUIDE, 0.0)
-        );
-        for (elevation_deg, samples, lobe, splitting, control) in [
-            (-4.0, 1, SUN_LOBE, true, false),
-            (-0.1, 1, SUN_LOBE, true, false),
-            (0.0, 1, CONTROL_SUN_LOBE, false, true),
-            (2.0, 1, CONTROL_SUN_LOBE, false, true),
-            (2.9, 1, CONTROL_SUN_LOBE, false, true),
-            (3.0, 0, SUN_LOBE, false, false),
-            (9.9, 0, SUN_LOBE, false, false),
-            (10.0, 0, SUN_LOBE, false, false),
-            (30.0, 0, SUN_LOBE, false, false),
-            (30.1, 0, HIGH_SUN_LOBE, false, false),
-            (45.0, 0, HIGH_SUN_LOBE, false, false),
-        ] {
-            let resolved = auto.resolved(elevation_deg, &haze);
-            assert_eq!(
-                (
-                    resolved.sunlight_samples,
-                    resolved.sun_lobe,
-                    resolved.sky_guide_sunlit,
-                    resolved.splitting,
-                    resolved.control_variate,
-                    resolved.sky_guide,
-                    resolved.camera_importance,
-                    resolved.circle_splatting
-                ),
-                (
-                    Some(samples),
-                    Some(lobe),
-                    Some(samples == 1),
-                    Some(splitting),
-                    Some(control),
-                    Some(if splitting {
-                        SHADOW_SKY_GUIDE
-                    } else {
-                        SKY_GUIDE
-                    }),
-                    Some(if samples == 1 { CAMERA_IMPORTANCE } else { 0.0 }),
-                    // Splatting below 10°.
-                    Some(elevation_deg < 10.0)
-                ),
-                "{elevation_deg}°"
-            );
-            assert_eq!(
-                IntegratorOptions {
-                    sunlight_samples: None,
-                    sun_lobe: None,
-                    sky_guide_sunlit: None,
-                    splitting: None,
-                    control_variate: None,
-                    sky_guide: None,
-                    camera_importance: None,
-                    circle_splatting: None,
-                    ..resolved
-                },
-                auto
-            );
-        }
-        for (samples, lobe, sunlit, splitting) in [(0, 0.0, true, true), (3, 0.5, false, false)] {
-            let options = IntegratorOptions {
-                sky_guide: Some(lobe),
-                sunlight_samples: Some(samples),
-                sun_lobe: Some(lobe),
-                sky_guide_sunlit: Some(sunlit),
-                splitting: Some(splitting),
-                control_variate: Some(!splitting),
-                camera_importance: Some(lobe),
-                circle_splatting: Some(!splitting),
-                ..IntegratorOptions::default()
-            };
-            assert_eq!(options.resolved(-4.0, &haze), options);
-            assert_eq!(options.resolved(2.0, &haze), options);
-            assert_eq!(options.resolved(45.0, &haze), options);
-        }
-        // An unset lobe follows the control variate as set, not the sun.
-        let control = |on: bool| IntegratorOptions {
-            control_variate: Some(on),
-            ..IntegratorOptions::default()
-        };
-        assert_eq!(control(false).resolved(2.0, &haze).sun_lobe, Some(SUN_LOBE));
-        assert_eq!(
-            control(true).resolved(45.0, &haze).sun_lobe,
-            Some(CONTROL_SUN_LOBE)
-        );
-        // Unset splitting follows roulette: without it, none below the horizon.
-        let no_roulette = IntegratorOptions {
-            russian_roulette: false,
-            ..IntegratorOptions::default()
-        };
-        assert_eq!(no_roulette.resolved(-4.0, &haze).splitting, Some(false));
-    }
-
-    #[test]
-    fn the_control_variate_stays_off_where_its_table_cannot_hold_the_haze() {
-        // At sunset, unset: on in the default haze and at the limits, off
-        // past them (with the sun lobe of no control), on again without
-        // aerosols whatever their g; set, honoured.
-        let haze = |amount: f64, g: f64| AtmosphereParams {
-            aerosol_amount: amount,
-            aerosol_g: g,
-            ..AtmosphereParams::default()
-        };
-        let per_amount = AtmosphereParams::default().aerosol_optical_depth(550.0);
-        let deepest = CONTROL_MAX_AEROSOL_DEPTH / per_amount;
-        let (g_min, g_max) = CONTROL_AEROSOL_G;
-        for (atmosphere, on) in [
-            (haze(1.0, 0.7), true),
-            (haze(deepest * 0.999, 0.7), true),
-            (haze(deepest * 1.001, 0.7), false),
-            (haze(100.0, 0.7), false),
-            (haze(100.0, 0.99), false),
-            (haze(1.0, g_max), true),
-            (haze(1.0, g_max + 0.01), false),
-            (haze(1.0, 0.99), false),
-            (haze(1.0, g_min), true),
-            (haze(1.0, g_min - 0.01), false),
-            (haze(1.0, -0.99), false),
-            (haze(0.0, 0.99), true),
-            (
-                AtmosphereParams {
-                    aerosols: false,
-                    ..haze(100.0, 0.99)
-                },
-                true,
-            ),
-        ] {
-            let what = format!("{} {}", atmosphere.aerosol_amount, atmosphere.aerosol_g);
-            assert_eq!(control_table_holds(&atmosphere), on, "{what}");
-            let resolved = IntegratorOptions::default().resolved(2.0, &atmosphere);
-            assert_eq!(resolved.control_variate, Some(on), "{what}");
-            let lobe = if on { CONTROL_SUN_LOBE } else { SUN_LOBE };
-            assert_eq!(resolved.sun_lobe, Some(lobe), "{what}");
-            for set in [false, true] {
-                let options = IntegratorOptions {
-                    control_variate: Some(set),
-                    ..IntegratorOptions::default()
-                };
-                let resolved = options.resolved(2.0, &atmosphere);
-                assert_eq!(resolved.control_variate, Some(set), "{what}");
-            }
-        }
-        // The default haze: aerosol optical depth 0.249 at 550 nm, g 0.7.
-        assert!((per_amount - 0.249).abs() < 0.001, "{per_amount}");
-    }
-
-    #[test]
     fn the_weight_window_splits_within_its_cap_and_roulettes_dim_paths() {
         use crate::atmosphere::{Atmosphere, AtmosphereParams};
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
         let sun = super::super::direction_from_az_el(270.0, -4.0);
         let guide = SkyGuide::new(&medium, sun);
-        let options = IntegratorOptions {
+        let plan = TechniquePlan::outside_a_scene(&IntegratorOptions {
             splitting: Some(true),
             ..IntegratorOptions::default()
-        };
-        let integrator = Integrator::new(&medium, &options, sun).with_sky_guide(&guide);
+        });
+        let integrator = Integrator::new(&medium, &plan, sun).with_sky_guide(&guide);
         let lanes = SpectralLanes::new([450.0, 520.0, 590.0, 660.0], LANES, &medium, false);
         let x = DVec3::new(0.0, 0.0, medium.planet_radius_m + 20_000.0);
         let c = medium.coefficients(x.length(), &lanes);

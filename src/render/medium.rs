@@ -36,10 +36,10 @@ use crate::atmosphere::{AerosolSpectrum, AlbedoSpectrum, Atmosphere, GroundAlbed
 use crate::physics::rayleigh::Gas;
 use crate::physics::spectrum_file::Tabulated;
 use crate::physics::{aerosol, ozone, sun};
+pub use crate::plan::TransmittanceEstimator;
 use crate::rng::Rng;
 
-/// Wavelengths carried by one path.
-pub const LANES: usize = 4;
+pub use crate::spectrum::LANES;
 /// One value per wavelength lane.
 pub type Lanes = [f64; LANES];
 
@@ -1118,25 +1118,6 @@ impl Medium {
         }
         Some(end)
     }
-}
-
-/// Estimators of transmittance along shadow rays.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
-#[serde(rename_all = "kebab-case")]
-pub enum TransmittanceEstimator {
-    /// Residual ratio tracking (Novák et al. 2014) with a table of columns
-    /// as control ([`super::columns`]), on shadow rays and segments alike;
-    /// where the table's residual bound expects more than two events (grazing
-    /// rays low down), each shell's chord of the extinction.
-    #[default]
-    ResidualRatioTracking,
-    /// Residual ratio tracking with the shells' chords as control everywhere
-    /// (a walk through every shell the ray crosses).
-    ChordResidualRatioTracking,
-    /// Ratio tracking (Cramer 1978; Novák et al. 2014).
-    RatioTracking,
-    /// Delta tracking: a binary estimate (Woodcock et al. 1965).
-    DeltaTracking,
 }
 
 #[derive(Clone, Copy, Debug)]

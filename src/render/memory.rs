@@ -30,7 +30,7 @@ impl Renderer {
         let film = Film::try_new(self.scene.render.width, self.scene.render.height)
             .map_err(|_| self.out_of_memory())?
             .with_mirror(self.mirror);
-        let film = if self.splatting {
+        let film = if self.plan.circle_splatting {
             film.try_with_splats().map_err(|_| self.out_of_memory())?
         } else {
             film
@@ -67,11 +67,11 @@ impl Renderer {
     /// integrator reads do not grow with the image and are left out.
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
-        let film = 48 + if self.splatting { 12 } else { 0 } + 1;
+        let film = 48 + if self.plan.circle_splatting { 12 } else { 0 } + 1;
         let planning = 8 + 4 + 4 + 2 + 1;
         let output = 12 + 3;
         let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {
-            film_spectral::spectral_bytes_per_pixel(bands, self.splatting)
+            film_spectral::spectral_bytes_per_pixel(bands, self.plan.circle_splatting)
         });
         pixels * (film + planning.max(output) + spectral + self.layer_bytes_per_pixel())
     }

@@ -13,7 +13,49 @@ use std::time::{Duration, Instant};
 use super::parts::{PassRange, Tile};
 use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
-use crate::scene::Scene;
+use crate::scene::{CameraKind, Scene};
+
+/// Pixels in a preview at scale 1 (320 × 160 for the equirectangular view).
+pub const PREVIEW_BASE_PIXELS: f64 = 320.0 * 160.0;
+
+/// Samples per pixel after which a preview stops refining, by default.
+pub const PREVIEW_TARGET_SPP: u32 = 1024;
+
+/// Width and height of a preview of `scene` at linear `scale`: 2:1 for the
+/// equirectangular map, square for the fisheye, the scene's own aspect
+/// ratio for the perspective camera; about [`PREVIEW_BASE_PIXELS`] × scale²
+/// pixels in each case.
+pub fn preview_size(scene: &Scene, scale: f64) -> (u32, u32) {
+    let pixels = PREVIEW_BASE_PIXELS * scale * scale;
+    let aspect = match scene.camera.kind {
+        CameraKind::Equirect => 2.0,
+        CameraKind::Fisheye => 1.0,
+        CameraKind::Perspective => {
+            let r = &scene.render;
+            (f64::from(r.width) / f64::from(r.height)).clamp(0.5, 3.0)
+        }
+    };
+    let width = (pixels * aspect).sqrt().round().max(1.0);
+    let height = (width / aspect).round().max(1.0);
+    (width as u32, height as u32)
+}
+
+/// The scene a preview renders: `scene` at the preview size for `scale`,
+/// refining to `spp` samples per pixel.
+pub fn preview_scene(scene: &Scene, scale: f64, spp: u32) -> Scene {
+    let mut preview = scene.clone();
+    let (width, height) = preview_size(scene, scale);
+    preview.render.width = width;
+    preview.render.height = height;
+    preview.render.spp = spp;
+    preview
+}
+
+/// The app's first preview: the `midday` preset at scale 1.
+pub fn default_preview_scene() -> Scene {
+    let midday = Scene::preset("midday").unwrap_or_default();
+    preview_scene(&midday, 1.0, PREVIEW_TARGET_SPP)
+}
 
 /// An image published by the service.
 #[derive(Clone, Debug)]

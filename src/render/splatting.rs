@@ -107,7 +107,7 @@ impl Renderer {
                         // sequences, one scrambled per pass and block of
                         // SOBOL_POINTS: their wavelengths, points and first
                         // directions are stratified across the pass.
-                        let mut rng = match integrator.options.sampler {
+                        let mut rng = match integrator.plan.sampler {
                             Sampler::Sobol => rng.with_sobol_prefix(
                                 seed ^ mix64(u64::from(pass)),
                                 SPLAT_STREAM ^ (walk / SOBOL_POINTS),

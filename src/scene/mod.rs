@@ -7,9 +7,10 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::atmosphere::AtmosphereParams;
+pub use crate::error::{show_number, SceneError};
 use crate::physics::planet::Planet;
 use crate::physics::solar_position::{self, SunPlacement};
-use crate::render::IntegratorOptions;
+use crate::plan::IntegratorOptions;
 use crate::spectrum::Observer;
 
 mod output;
@@ -244,23 +245,6 @@ pub struct Scene {
     pub planet: PlanetParams,
 }
 
-/// An invalid parameter.
-#[derive(Clone, Debug, PartialEq, thiserror::Error)]
-#[error("invalid {parameter}: {message}")]
-pub struct SceneError {
-    pub parameter: String,
-    pub message: String,
-}
-
-impl SceneError {
-    pub fn new(parameter: &str, message: impl Into<String>) -> Self {
-        Self {
-            parameter: parameter.to_owned(),
-            message: message.into(),
-        }
-    }
-}
-
 /// A TOML error as one line: where (line and column) and what, e.g.
 /// "line 2, column 8: unknown variant `ortho`, expected one of `perspective`,
 /// `equirect`, `fisheye`" (the toml crate's own display spans several lines).
@@ -349,18 +333,6 @@ fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), Scen
                 show_number(value)
             ),
         ))
-    }
-}
-
-/// A number as a message shows it: plainly where that is short, in
-/// scientific notation where plain digits would run long (`1e308`, not 309
-/// digits; `1.5e-9`, not a row of zeros).
-pub fn show_number(value: f64) -> String {
-    let magnitude = value.abs();
-    if value == 0.0 || !value.is_finite() || (1e-4..1e7).contains(&magnitude) {
-        format!("{value}")
-    } else {
-        format!("{value:e}")
     }
 }
 
@@ -676,13 +648,13 @@ impl Scene {
             check_range("exposure (EV)", ev, -50.0, 50.0)?;
         }
         let i = &r.integrator;
-        let samples = crate::render::integrator::MAX_SUNLIGHT_SAMPLES;
-        let branches = crate::render::integrator::MAX_BRANCHES;
+        let samples = crate::plan::MAX_SUNLIGHT_SAMPLES;
+        let branches = crate::plan::MAX_BRANCHES;
         check_count(
             "wavelengths per path",
             i.wavelengths_per_path,
             1,
-            crate::render::LANES,
+            crate::spectrum::LANES,
         )?;
         if let Some(n) = i.sunlight_samples {
             check_count("sunlight samples", n as usize, 0, samples)?;
@@ -705,7 +677,7 @@ impl Scene {
             "forced collision depth",
             i.forced_collision_depth as usize,
             0,
-            crate::render::integrator::MAX_FORCED_COLLISION_DEPTH as usize,
+            crate::plan::MAX_FORCED_COLLISION_DEPTH as usize,
         )?;
         if i.circle_splatting == Some(true)
             && self.observer.altitude_m >= self.atmosphere.top_altitude_m
@@ -920,27 +892,21 @@ mod tests {
 
     #[test]
     fn the_control_variate_is_a_scene_option_on_at_sunset() {
+        use crate::plan::{Conditions, TechniquePlan};
         let scene = Scene::from_toml("[render.integrator]\ncontrol_variate = false\n").unwrap();
         assert_eq!(scene.render.integrator.control_variate, Some(false));
+        let control = |scene: &Scene| {
+            let at = Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, true);
+            TechniquePlan::new(&scene.render.integrator, &at).control_variate
+        };
         let sunset = Scene::preset("sunset").unwrap();
-        let resolved = sunset
-            .render
-            .integrator
-            .resolved(sunset.sun.elevation_deg, &sunset.atmosphere);
-        assert_eq!(resolved.control_variate, Some(true));
-        let midday = Scene::preset("midday").unwrap();
-        let resolved = midday
-            .render
-            .integrator
-            .resolved(midday.sun.elevation_deg, &midday.atmosphere);
-        assert_eq!(resolved.control_variate, Some(false));
+        assert!(control(&sunset));
+        assert!(!control(&Scene::preset("midday").unwrap()));
         // Nor in haze its table cannot hold, unless asked for.
         let mut haze = sunset.clone();
         haze.atmosphere.aerosol_amount = 100.0;
-        let resolved = haze.render.integrator.resolved(2.0, &haze.atmosphere);
-        assert_eq!(resolved.control_variate, Some(false));
+        assert!(!control(&haze));
         haze.render.integrator.control_variate = Some(true);
-        let resolved = haze.render.integrator.resolved(2.0, &haze.atmosphere);
-        assert_eq!(resolved.control_variate, Some(true));
+        assert!(control(&haze));
     }
 }

@@ -1,0 +1,33 @@
+//! The error every bad input becomes: which parameter, and what is wrong
+//! with it, in one line. Below the scene and the physics alike, so that
+//! either can refuse input without importing the other.
+
+/// An invalid parameter: its name as the user wrote it (a TOML key, a
+/// flag, a file) and the reason, naming the valid range or form.
+#[derive(Clone, Debug, PartialEq, thiserror::Error)]
+#[error("invalid {parameter}: {message}")]
+pub struct SceneError {
+    pub parameter: String,
+    pub message: String,
+}
+
+impl SceneError {
+    pub fn new(parameter: &str, message: impl Into<String>) -> Self {
+        Self {
+            parameter: parameter.to_owned(),
+            message: message.into(),
+        }
+    }
+}
+
+/// A number as a message shows it: plainly where that is short, in
+/// scientific notation where plain digits would run long (`1e308`, not 309
+/// digits; `1.5e-9`, not a row of zeros).
+pub fn show_number(value: f64) -> String {
+    let magnitude = value.abs();
+    if value == 0.0 || !value.is_finite() || (1e-4..1e7).contains(&magnitude) {
+        format!("{value}")
+    } else {
+        format!("{value:e}")
+    }
+}

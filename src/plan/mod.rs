@@ -1,0 +1,538 @@
+//! The technique plan: the one place where a scene's conditions (the sun's
+//! elevation, where the observer stands, the haze) and the user's switches
+//! ([`IntegratorOptions`]) become a fully resolved choice of estimators.
+//!
+//! ```text
+//! IntegratorOptions (user, Option = "choose") ─┐
+//! Conditions (sun elevation, observer, haze) ──┴─► TechniquePlan ─► integrator
+//!                                                       └─► first_pass() (the draft)
+//! ```
+//!
+//! The plan has no unset field: the integrator, the renderer and the table
+//! builders read its sub-plans as they are. The regime table
+//! ([`regime::REGIMES`]) holds every default that depends on the sun; the
+//! README shows the same table (a test keeps them equal).
+
+pub mod options;
+pub mod regime;
+
+pub use options::{IntegratorOptions, Sampler, TransmittanceEstimator};
+pub use regime::{Regime, RegimeDefaults, REGIMES};
+
+use crate::atmosphere::AtmosphereParams;
+
+/// Next-event points per camera ray where the renderer does not splat:
+/// against 1, less variance at midday for little more time.
+pub const CAMERA_SAMPLES: u32 = 2;
+
+/// Next-event points per camera ray where the renderer splats along
+/// circles: the camera's paths then carry single scattering (and the
+/// ground's light) only, whose variance is per point, while the points cost
+/// little beside the splats.
+pub const SPLAT_CAMERA_SAMPLES: u32 = 8;
+
+/// Most next-event points on one segment or camera ray (`camera_samples`,
+/// `sunlight_samples`, `shadow_samples`).
+pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
+
+/// Most branches of a camera path (`camera_branches`).
+pub const MAX_BRANCHES: usize = 8;
+
+/// Largest `forced_collision_depth` accepted: the depth past which the
+/// integrator's roulette caps survival at 0.9, so paths end with
+/// probability one.
+pub const MAX_FORCED_COLLISION_DEPTH: u32 = 64;
+
+/// Largest vertical aerosol optical depth at 550 nm with the control
+/// variate on by default. The table holds the once-scattered light at 12
+/// altitudes and 8 wavelengths and a point takes a neighbour's; half the
+/// aerosol column lies between the two lowest altitudes, so in thick haze
+/// the light it holds changes by orders of magnitude from one cell to the
+/// next, and deep in it the light is mostly scattered many times, which the
+/// table does not hold: beyond this depth the control adds noise (the
+/// decisions table of `BENCHMARKS.md`).
+pub const CONTROL_MAX_AEROSOL_DEPTH: f64 = 4.0;
+
+/// Aerosol asymmetry parameters g (from, to) with the control variate on by
+/// default where there are aerosols. The expansion stops at degree
+/// [`crate::render::control::L_MAX`] = 8, and a Henyey–Greenstein aureole
+/// keeps Σ_{l>8} (2l+1) g^{2l} of its squared norm beyond it: 1.2 % at
+/// g = 0.7, 9 % at 0.8, 43 % at 0.9. The expansion then rings about the sun
+/// and misses the peak, which the paths must find without the sun lobe.
+pub const CONTROL_AEROSOL_G: (f64, f64) = (-0.5, 0.8);
+
+/// Whether the control variate's table holds the once-scattered light well
+/// enough in `atmosphere`'s haze to pay for itself: an aerosol column no
+/// deeper than [`CONTROL_MAX_AEROSOL_DEPTH`] at 550 nm, and g within
+/// [`CONTROL_AEROSOL_G`] (or no aerosols). Either way the estimate stays
+/// unbiased (the phase function's Legendre moments are exact): only the
+/// noise is at stake.
+pub fn control_table_holds(atmosphere: &AtmosphereParams) -> bool {
+    let depth = atmosphere.aerosol_optical_depth(550.0);
+    depth == 0.0
+        || (depth <= CONTROL_MAX_AEROSOL_DEPTH
+            && (CONTROL_AEROSOL_G.0..=CONTROL_AEROSOL_G.1).contains(&control_aerosol_g(atmosphere)))
+}
+
+/// The g that [`control_table_holds`] compares with [`CONTROL_AEROSOL_G`]:
+/// Henyey–Greenstein's and Cornette–Shanks' parameter, the other phase
+/// functions' mean cosine (the forward peak whose share beyond the
+/// expansion's degree is at stake; NaN where the phase function cannot be
+/// built).
+pub fn control_aerosol_g(atmosphere: &AtmosphereParams) -> f64 {
+    use crate::physics::aerosol::PhaseFunction;
+    match atmosphere.aerosol_phase_function() {
+        Ok(PhaseFunction::HenyeyGreenstein { g } | PhaseFunction::CornetteShanks { g }) => g,
+        Ok(phase) => phase.mean_cosine(),
+        Err(_) => f64::NAN,
+    }
+}
+
+/// What the plan needs to know of a scene.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Conditions {
+    /// The sun's elevation above the observer's horizon, degrees.
+    pub sun_elevation_deg: f64,
+    /// Whether the haze lets the control variate's table hold the light
+    /// ([`control_table_holds`]).
+    pub haze_fits_control: bool,
+    /// Whether multiply scattered light can be splatted along circles: the
+    /// observer inside the atmosphere and the sun off the zenith and nadir.
+    pub circles: bool,
+}
+
+impl Conditions {
+    /// Conditions of a scene whose sun stands `sun_elevation_deg` up in
+    /// `atmosphere`; `circles` as [`Self::circles`].
+    pub fn new(sun_elevation_deg: f64, atmosphere: &AtmosphereParams, circles: bool) -> Self {
+        Self {
+            sun_elevation_deg,
+            haze_fits_control: control_table_holds(atmosphere),
+            circles,
+        }
+    }
+
+    /// A day sky (the [`Regime::Day`] row) without circles to splat along:
+    /// the plan of an integrator built outside a scene, such as in tests
+    /// of single estimators, where every sun-dependent technique is off
+    /// unless set.
+    pub const DAY: Self = Self {
+        sun_elevation_deg: 20.0,
+        haze_fits_control: true,
+        circles: false,
+    };
+}
+
+/// How camera rays are estimated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraPlan {
+    /// Next-event points per camera ray from its tabulated expected
+    /// sunlight; 0 = delta tracking.
+    pub samples: u32,
+    /// Continuations of each camera path (1–8).
+    pub branches: u32,
+    /// Share of branch points drawn by the sky guide's skylight (0 where
+    /// camera rays are delta-tracked).
+    pub importance: f64,
+}
+
+/// How path segments are estimated.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SegmentPlan {
+    /// Shell-wise majorants (else one for the whole atmosphere).
+    pub tight_majorants: bool,
+    /// The transmittance estimator of shadow rays.
+    pub shadow_transmittance: TransmittanceEstimator,
+    /// Next-event estimation toward the sun.
+    pub next_event_estimation: bool,
+    /// Next-event points per segment from its expected sunlight; 0 = delta
+    /// tracking.
+    pub sunlight_samples: u32,
+    /// Such points on segments that start in the planet's shadow.
+    pub shadow_samples: u32,
+    /// Segments after 1 to this many scatterings force their first
+    /// collision into the air; 0 = off.
+    pub forced_collision_depth: u32,
+}
+
+/// How scattering directions are drawn.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct DirectionPlan {
+    /// Share from the phase function about the sun's direction.
+    pub sun_lobe: f64,
+    /// Share from the sky guide's table at shadowed points.
+    pub sky_guide: f64,
+    /// The guide at sunlit points too.
+    pub sky_guide_sunlit: bool,
+}
+
+/// How paths end.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TerminationPlan {
+    /// Russian roulette after the second scattering.
+    pub russian_roulette: bool,
+    /// Roulette and splitting by the guide's skylight (needs roulette).
+    pub splitting: bool,
+    /// Scattering orders kept; `u32::MAX` = all (the unbiased default).
+    pub max_scattering_order: u32,
+}
+
+/// A fully resolved choice of techniques for one scene: no unset field.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TechniquePlan {
+    /// The sun's regime, whose row supplied the unset choices.
+    pub regime: Regime,
+    /// Wavelengths per path (1–[`crate::spectrum::LANES`]).
+    pub wavelengths_per_path: usize,
+    /// Camera rays.
+    pub camera: CameraPlan,
+    /// Path segments.
+    pub segments: SegmentPlan,
+    /// Scattering directions.
+    pub directions: DirectionPlan,
+    /// Roulette, splitting and the orders kept.
+    pub termination: TerminationPlan,
+    /// The once-scattered light as a control variate (never with a limit
+    /// on the orders, which it would mix).
+    pub control_variate: bool,
+    /// Multiply scattered light splatted along circles.
+    pub circle_splatting: bool,
+    /// How pixel samples draw their first random numbers.
+    pub sampler: Sampler,
+    /// The first pass's weight in the film's average (1 for later ones).
+    pub draft_weight: f64,
+}
+
+impl TechniquePlan {
+    /// The plan for `options` under `conditions`: every unset switch from
+    /// the regime table's row for the sun, then the gates between
+    /// techniques (splitting needs roulette; splatting needs camera-ray
+    /// densities, next-event estimation and circles; the sun lobe yields to
+    /// the control variate).
+    pub fn new(options: &IntegratorOptions, conditions: &Conditions) -> Self {
+        let regime = Regime::at(conditions.sun_elevation_deg);
+        let row = regime.defaults();
+        let control_variate = options
+            .control_variate
+            .unwrap_or(row.control_variate && conditions.haze_fits_control);
+        let camera_samples_asked = options.camera_samples.unwrap_or(CAMERA_SAMPLES);
+        let circle_splatting = options.circle_splatting.unwrap_or(row.circle_splatting)
+            && camera_samples_asked > 0
+            && options.next_event_estimation
+            && conditions.circles;
+        let camera_samples = options.camera_samples.unwrap_or(if circle_splatting {
+            SPLAT_CAMERA_SAMPLES
+        } else {
+            CAMERA_SAMPLES
+        });
+        let importance = options.camera_importance.unwrap_or(row.camera_importance);
+        Self {
+            regime,
+            wavelengths_per_path: options.wavelengths_per_path,
+            camera: CameraPlan {
+                samples: camera_samples,
+                branches: options.camera_branches,
+                importance: if camera_samples > 0 { importance } else { 0.0 },
+            },
+            segments: SegmentPlan {
+                tight_majorants: options.tight_majorants,
+                shadow_transmittance: options.shadow_transmittance,
+                next_event_estimation: options.next_event_estimation,
+                sunlight_samples: options.sunlight_samples.unwrap_or(row.sunlight_samples),
+                shadow_samples: options.shadow_samples,
+                forced_collision_depth: options.forced_collision_depth,
+            },
+            directions: DirectionPlan {
+                sun_lobe: options.sun_lobe.unwrap_or(if control_variate {
+                    regime::CONTROL_SUN_LOBE
+                } else {
+                    row.sun_lobe
+                }),
+                sky_guide: options.sky_guide.unwrap_or(row.sky_guide),
+                sky_guide_sunlit: options.sky_guide_sunlit.unwrap_or(row.sky_guide_sunlit),
+            },
+            termination: TerminationPlan {
+                russian_roulette: options.russian_roulette,
+                // Splitting needs roulette (the scene refuses one without
+                // the other); unset, it follows it.
+                splitting: options
+                    .splitting
+                    .unwrap_or(options.russian_roulette && row.splitting),
+                max_scattering_order: options.max_scattering_order.unwrap_or(u32::MAX),
+            },
+            control_variate: control_variate && options.max_scattering_order.is_none(),
+            circle_splatting,
+            sampler: options.sampler,
+            draft_weight: row.draft_weight,
+        }
+    }
+
+    /// The plan for `options` outside a scene ([`Conditions::DAY`]).
+    pub fn outside_a_scene(options: &IntegratorOptions) -> Self {
+        Self::new(options, &Conditions::DAY)
+    }
+
+    /// The first (draft) pass's plan: plain delta-tracked camera paths and
+    /// segments, no control variate, no guided directions, independent
+    /// random numbers (the Sobol prefix costs ~4 % of a path and one pass
+    /// gains nothing from stratification across passes), and shadow rays
+    /// through the shells' chords (the column table takes ~20 ms to build:
+    /// not in the first frame). Every pass is an unbiased estimate, so the
+    /// film's weighted average of them stays unbiased.
+    #[must_use]
+    pub fn first_pass(&self) -> Self {
+        Self {
+            camera: CameraPlan {
+                samples: 0,
+                ..self.camera
+            },
+            segments: SegmentPlan {
+                sunlight_samples: 0,
+                shadow_samples: 0,
+                shadow_transmittance: match self.segments.shadow_transmittance {
+                    TransmittanceEstimator::ResidualRatioTracking => {
+                        TransmittanceEstimator::ChordResidualRatioTracking
+                    }
+                    other => other,
+                },
+                ..self.segments
+            },
+            directions: DirectionPlan {
+                sky_guide: 0.0,
+                ..self.directions
+            },
+            control_variate: false,
+            sampler: Sampler::Independent,
+            ..*self
+        }
+    }
+
+    /// The plan that fills the control variate's table: this plan's
+    /// techniques, once-scattered light only (orders ≤ 2 from the table's
+    /// point, which starts at order 1), no control of its own.
+    #[must_use]
+    pub fn for_control_table(&self) -> Self {
+        Self {
+            control_variate: false,
+            termination: TerminationPlan {
+                max_scattering_order: 2,
+                ..self.termination
+            },
+            ..*self
+        }
+    }
+
+    /// Whether the renderer needs the sky guide's table: for guided
+    /// directions, segment estimates, or camera branch points by
+    /// importance.
+    pub fn needs_sky_guide(&self) -> bool {
+        self.directions.sky_guide > 0.0
+            || self.segments.shadow_samples > 0
+            || self.segments.sunlight_samples > 0
+            || self.camera.importance > 0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn haze() -> AtmosphereParams {
+        AtmosphereParams::default()
+    }
+
+    #[test]
+    fn unset_choices_follow_the_regime_table() {
+        let options = IntegratorOptions::default();
+        for (regime, row) in REGIMES {
+            let elevation = match regime {
+                Regime::Twilight => -4.0,
+                Regime::Sunset => 2.0,
+                Regime::LowSun => 5.0,
+                Regime::Day => 20.0,
+                Regime::HighSun => 45.0,
+            };
+            let plan = TechniquePlan::new(&options, &Conditions::new(elevation, &haze(), true));
+            assert_eq!(plan.regime, regime);
+            assert_eq!(plan.segments.sunlight_samples, row.sunlight_samples);
+            assert_eq!(plan.camera.importance, row.camera_importance);
+            assert_eq!(plan.directions.sky_guide, row.sky_guide);
+            assert_eq!(plan.directions.sky_guide_sunlit, row.sky_guide_sunlit);
+            assert_eq!(plan.termination.splitting, row.splitting);
+            assert_eq!(plan.control_variate, row.control_variate);
+            assert_eq!(plan.circle_splatting, row.circle_splatting);
+            let lobe = if row.control_variate {
+                regime::CONTROL_SUN_LOBE
+            } else {
+                row.sun_lobe
+            };
+            assert_eq!(plan.directions.sun_lobe, lobe);
+            let points = if row.circle_splatting {
+                SPLAT_CAMERA_SAMPLES
+            } else {
+                CAMERA_SAMPLES
+            };
+            assert_eq!(plan.camera.samples, points);
+            assert_eq!(plan.draft_weight, row.draft_weight);
+        }
+    }
+
+    #[test]
+    fn set_choices_stay_whatever_the_sun() {
+        let options = IntegratorOptions {
+            camera_samples: Some(3),
+            camera_importance: Some(0.2),
+            sunlight_samples: Some(2),
+            sun_lobe: Some(0.4),
+            sky_guide: Some(0.1),
+            sky_guide_sunlit: Some(false),
+            splitting: Some(false),
+            control_variate: Some(false),
+            circle_splatting: Some(false),
+            ..IntegratorOptions::default()
+        };
+        let plans: Vec<TechniquePlan> = [-4.0, 2.0, 45.0]
+            .iter()
+            .map(|&e| TechniquePlan::new(&options, &Conditions::new(e, &haze(), true)))
+            .collect();
+        for plan in &plans {
+            assert_eq!(plan.camera.samples, 3);
+            assert_eq!(plan.camera.importance, 0.2);
+            assert_eq!(plan.segments.sunlight_samples, 2);
+            assert_eq!(plan.directions.sun_lobe, 0.4);
+            assert_eq!(plan.directions.sky_guide, 0.1);
+            assert!(!plan.directions.sky_guide_sunlit);
+            assert!(!plan.termination.splitting && !plan.control_variate);
+            assert!(!plan.circle_splatting);
+        }
+    }
+
+    #[test]
+    fn the_gates_between_techniques_hold() {
+        let at = |e| Conditions::new(e, &haze(), true);
+        // Splitting follows roulette.
+        let no_roulette = IntegratorOptions {
+            russian_roulette: false,
+            ..IntegratorOptions::default()
+        };
+        assert!(
+            !TechniquePlan::new(&no_roulette, &at(-4.0))
+                .termination
+                .splitting
+        );
+        // Splatting needs circles, camera-ray densities and next-event
+        // estimation.
+        let default = IntegratorOptions::default();
+        let no_circles = Conditions {
+            circles: false,
+            ..at(-4.0)
+        };
+        let plan = TechniquePlan::new(&default, &no_circles);
+        assert!(!plan.circle_splatting);
+        assert_eq!(plan.camera.samples, CAMERA_SAMPLES);
+        let delta_camera = IntegratorOptions {
+            camera_samples: Some(0),
+            ..IntegratorOptions::default()
+        };
+        let plan = TechniquePlan::new(&delta_camera, &at(-4.0));
+        assert!(!plan.circle_splatting);
+        assert_eq!(plan.camera.importance, 0.0);
+        // The control variate: set on, the lobe yields; in haze its table
+        // cannot hold, it stays off unless set; never with an order limit.
+        let control = IntegratorOptions {
+            control_variate: Some(true),
+            ..IntegratorOptions::default()
+        };
+        let plan = TechniquePlan::new(&control, &at(45.0));
+        assert!(plan.control_variate);
+        assert_eq!(plan.directions.sun_lobe, regime::CONTROL_SUN_LOBE);
+        let thick = Conditions {
+            haze_fits_control: false,
+            ..at(2.0)
+        };
+        assert!(!TechniquePlan::new(&default, &thick).control_variate);
+        assert!(TechniquePlan::new(&control, &thick).control_variate);
+        let single = IntegratorOptions {
+            max_scattering_order: Some(1),
+            ..control
+        };
+        assert!(!TechniquePlan::new(&single, &at(2.0)).control_variate);
+    }
+
+    #[test]
+    fn the_first_pass_is_plain_delta_tracking() {
+        let plan = TechniquePlan::new(
+            &IntegratorOptions::default(),
+            &Conditions::new(2.0, &haze(), true),
+        );
+        let draft = plan.first_pass();
+        assert_eq!(draft.camera.samples, 0);
+        assert_eq!(draft.segments.sunlight_samples, 0);
+        assert_eq!(draft.directions.sky_guide, 0.0);
+        assert!(!draft.control_variate);
+        assert_eq!(draft.sampler, Sampler::Independent);
+        assert_eq!(
+            draft.segments.shadow_transmittance,
+            TransmittanceEstimator::ChordResidualRatioTracking
+        );
+        assert_eq!(draft.draft_weight, plan.draft_weight);
+    }
+
+    #[test]
+    fn the_control_variate_stays_off_where_its_table_cannot_hold_the_haze() {
+        // At sunset, unset: on in the default haze and at the limits, off
+        // past them (with the sun lobe of no control), on again without
+        // aerosols whatever their g; set, honoured.
+        let haze = |amount: f64, g: f64| AtmosphereParams {
+            aerosol_amount: amount,
+            aerosol_g: g,
+            ..AtmosphereParams::default()
+        };
+        let per_amount = AtmosphereParams::default().aerosol_optical_depth(550.0);
+        let deepest = CONTROL_MAX_AEROSOL_DEPTH / per_amount;
+        let (g_min, g_max) = CONTROL_AEROSOL_G;
+        for (atmosphere, on) in [
+            (haze(1.0, 0.7), true),
+            (haze(deepest * 0.999, 0.7), true),
+            (haze(deepest * 1.001, 0.7), false),
+            (haze(100.0, 0.7), false),
+            (haze(100.0, 0.99), false),
+            (haze(1.0, g_max), true),
+            (haze(1.0, g_max + 0.01), false),
+            (haze(1.0, 0.99), false),
+            (haze(1.0, g_min), true),
+            (haze(1.0, g_min - 0.01), false),
+            (haze(1.0, -0.99), false),
+            (haze(0.0, 0.99), true),
+            (
+                AtmosphereParams {
+                    aerosols: false,
+                    ..haze(100.0, 0.99)
+                },
+                true,
+            ),
+        ] {
+            let what = format!("{} {}", atmosphere.aerosol_amount, atmosphere.aerosol_g);
+            assert_eq!(control_table_holds(&atmosphere), on, "{what}");
+            let at = Conditions::new(2.0, &atmosphere, true);
+            let plan = TechniquePlan::new(&IntegratorOptions::default(), &at);
+            assert_eq!(plan.control_variate, on, "{what}");
+            let lobe = if on {
+                regime::CONTROL_SUN_LOBE
+            } else {
+                Regime::Sunset.defaults().sun_lobe
+            };
+            assert_eq!(plan.directions.sun_lobe, lobe, "{what}");
+            for set in [false, true] {
+                let options = IntegratorOptions {
+                    control_variate: Some(set),
+                    ..IntegratorOptions::default()
+                };
+                let plan = TechniquePlan::new(&options, &at);
+                assert_eq!(plan.control_variate, set, "{what}");
+            }
+        }
+        // The default haze: aerosol optical depth 0.249 at 550 nm, g 0.7.
+        assert!((per_amount - 0.249).abs() < 0.001, "{per_amount}");
+    }
+}

@@ -1,0 +1,157 @@
+//! The user's technique switches: the scene's `[render.integrator]` table.
+//!
+//! Every field is either a fixed default or `None`, "let the plan choose";
+//! [`super::TechniquePlan::new`] makes every choice, by the regime table
+//! ([`super::regime`]). Nothing else reads these unset.
+
+/// Switches for the variance-reduction techniques (each defaults to the
+/// best; the benchmark's ablation turns them off one at a time). `None`
+/// means the regime table's choice for the scene's sun
+/// ([`super::regime::REGIMES`]).
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct IntegratorOptions {
+    /// Wavelengths carried per path, 1–4.
+    pub wavelengths_per_path: usize,
+    /// Shell-wise (tight) majorants; `false` uses one majorant for the whole atmosphere.
+    pub tight_majorants: bool,
+    /// Transmittance estimator for shadow rays.
+    pub shadow_transmittance: TransmittanceEstimator,
+    /// Next-event estimation toward the sun.
+    pub next_event_estimation: bool,
+    /// Next-event points on each camera ray, drawn from the expected
+    /// sunlight along it (tabulated per view direction; stratified), 0–8;
+    /// 0 = delta tracking on camera rays too. Unset: [`super::CAMERA_SAMPLES`],
+    /// or [`super::SPLAT_CAMERA_SAMPLES`] where the renderer splats along
+    /// circles.
+    pub camera_samples: Option<u32>,
+    /// Paths the camera ray branches into at its segment (each from its own
+    /// point, drawn from the skylight part of the density, or ground
+    /// bounce, weighted 1/N), 1–8, with `camera_samples` > 0: the camera
+    /// segment's cost is shared by several estimates of the multiply
+    /// scattered light, which carries most of the variance.
+    pub camera_branches: u32,
+    /// Share of the points camera paths branch from drawn ∝ σ_s T × the sky
+    /// guide's mean once-scattered radiance at the point (the light a
+    /// branch can expect to find there) instead of σ_s T, 0–1. Unset: the
+    /// regime table's.
+    pub camera_importance: Option<f64>,
+    /// Next-event points per path segment drawn from the expected-sunlight
+    /// density (stratified; the path goes on from a further point drawn
+    /// from its skylight part), 0–8; 0 = delta tracking with a next-event
+    /// estimate at every tentative collision. Unset: the regime table's.
+    pub sunlight_samples: Option<u32>,
+    /// Share of scattering directions drawn from the phase function about
+    /// the sun's direction instead of the path's, 0–1. Unset: the regime
+    /// table's, or [`super::regime::CONTROL_SUN_LOBE`] with the control
+    /// variate on.
+    pub sun_lobe: Option<f64>,
+    /// Share of scattering directions drawn, at points in the planet's
+    /// shadow, from the table of incoming once-scattered light there (the
+    /// sky guide) instead of the phase functions, 0–1. Unset: the regime
+    /// table's. By day no vertex lies in the shadow and nothing changes.
+    pub sky_guide: Option<f64>,
+    /// Whether `sky_guide` also guides directions at sunlit points (with
+    /// the sun low, the glow over the sun's azimuth holds much of the light
+    /// even a sunlit vertex sees). Unset: the regime table's.
+    pub sky_guide_sunlit: Option<bool>,
+    /// Next-event points on each path segment that starts in the planet's
+    /// shadow, drawn from the expected sunlight along it as the sky guide
+    /// tabulates it (the path goes on from its first real scattering),
+    /// 0–8; 0 (the default) = delta tracking there too: the pass over the
+    /// whole, often grazing, ray costs more than the variance it saves.
+    pub shadow_samples: u32,
+    /// Delta-tracked path segments that start after 1 to this many
+    /// scatterings and would leave the atmosphere force their first
+    /// tentative collision into the segment (weighted by its probability),
+    /// 0–64; 0 = off. Default 1, the branches of camera paths.
+    pub forced_collision_depth: u32,
+    /// Russian roulette after the second scattering event.
+    pub russian_roulette: bool,
+    /// Adjoint-driven roulette and splitting (after Vorba and Křivánek
+    /// 2016) at the real scatterings of paths whose segments are estimated
+    /// through the guide's densities (`sunlight_samples` > 0), the guide's
+    /// mean once-scattered radiance as the adjoint. Needs
+    /// `russian_roulette`. Unset: the regime table's where roulette is on,
+    /// else off.
+    pub splitting: Option<bool>,
+    /// The once-scattered light as a control variate: every real
+    /// scattering adds the exact phase-function integral of a tabulated
+    /// approximation A of the once-scattered light arriving there, and the
+    /// path going on estimates only L − A. Unset: the regime table's,
+    /// where the haze lets the table hold the light
+    /// ([`super::control_table_holds`]). Set, it is honoured.
+    pub control_variate: Option<bool>,
+    /// Multiply scattered light splatted along the scene's circles of
+    /// symmetry: the camera's own paths keep single scattering and the
+    /// ground's light, and paths started anywhere in the visible air carry
+    /// the rest to the pixels of 64 points on their start's circle about
+    /// the sun's axis. Needs `camera_samples` > 0, `next_event_estimation`
+    /// and the observer inside the atmosphere. Unset: the regime table's.
+    pub circle_splatting: Option<bool>,
+    /// How a pixel sample draws its first random numbers.
+    pub sampler: Sampler,
+    /// Keep only scattering orders up to this (for tests of single scattering;
+    /// `None` = all orders, the unbiased default).
+    pub max_scattering_order: Option<u32>,
+}
+
+impl Default for IntegratorOptions {
+    fn default() -> Self {
+        Self {
+            wavelengths_per_path: crate::spectrum::LANES,
+            tight_majorants: true,
+            shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
+            next_event_estimation: true,
+            camera_samples: None,
+            camera_branches: 4,
+            camera_importance: None,
+            sunlight_samples: None,
+            sun_lobe: None,
+            sky_guide: None,
+            sky_guide_sunlit: None,
+            shadow_samples: 0,
+            forced_collision_depth: 1,
+            russian_roulette: true,
+            splitting: None,
+            control_variate: None,
+            circle_splatting: None,
+            sampler: Sampler::Sobol,
+            max_scattering_order: None,
+        }
+    }
+}
+
+/// How a pixel sample draws its random numbers.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Sampler {
+    /// The first 32 uniforms of each pass from an Owen-scrambled Sobol
+    /// point, per pixel: the pixel position, the camera ray's scattering
+    /// points and the first scattering directions are stratified across
+    /// passes; the points splatted along circles take a pass's Sobol
+    /// points in turn.
+    #[default]
+    Sobol,
+    /// Every uniform independent (PCG).
+    Independent,
+}
+
+/// Estimators of transmittance along shadow rays.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum TransmittanceEstimator {
+    /// Residual ratio tracking (Novák et al. 2014) with a table of columns
+    /// as control, on shadow rays and segments alike; where the table's
+    /// residual bound expects more than two events (grazing rays low down),
+    /// each shell's chord of the extinction.
+    #[default]
+    ResidualRatioTracking,
+    /// Residual ratio tracking with the shells' chords as control everywhere
+    /// (a walk through every shell the ray crosses).
+    ChordResidualRatioTracking,
+    /// Ratio tracking (Cramer 1978; Novák et al. 2014).
+    RatioTracking,
+    /// Delta tracking: a binary estimate (Woodcock et al. 1965).
+    DeltaTracking,
+}

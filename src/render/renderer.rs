@@ -1,0 +1,796 @@
+//! The renderer: a validated [`Scene`] made ready to render (its medium,
+//! camera, technique plan and tables), and its passes over a [`Film`].
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Arc, OnceLock};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// The sun for `scene`: unit, or the measured spectrum (the built-in
+/// table or `[sun] spectrum`) at the scene's Earth–Sun distance
+/// ([`Scene::sun_distance_au`]), with its disc limb-darkened or uniform
+/// (`[sun] limb_darkening`).
+pub fn solar_source(scene: &Scene) -> SolarSource {
+    let file = scene
+        .sun_spectrum()
+        .expect("a validated scene's sun spectrum (Scene::validate reads it)");
+    SolarSource::at_distance(scene.render.unit_sun, scene.sun_distance_au())
+        .with_spectrum(file.as_deref())
+        .with_limb_darkening(scene.sun.limb_darkening)
+}
+
+use super::camera::{direction_from_az_el, Camera};
+use super::film::{Film, Mirror, MirrorAxis};
+use super::integrator::Integrator;
+use super::medium::{LaneTable, Lanes, Medium, SolarSource, SpectralLanes, LANES};
+use super::{circles, control, exact, film, film_layers, film_spectral, guide, sunlight};
+use crate::atmosphere::Atmosphere;
+use crate::plan::Conditions;
+use crate::plan::{Sampler, TechniquePlan};
+use crate::rng::{Rng, SOBOL_POINTS};
+use crate::scene::{Scene, SceneError};
+use crate::spectrum::{ColourMatching, K_M};
+use circles::CircleSplatter;
+use exact::ExactSum;
+use film_layers::SampleSplit;
+use film_spectral::SampleLanes;
+use sunlight::CameraDensities;
+
+/// (√5 − 1)/2: the additive recurrence with this step is the most evenly
+/// spread 1-D sequence (Weyl; the three-distance theorem).
+pub(super) const GOLDEN_RATIO_CONJUGATE: f64 = 0.618_033_988_749_894_8;
+
+/// With adaptive sampling on, the pass whose start fixes each pixel's
+/// samples per pass (see [`film`]): after the draft and the first
+/// full pass, so the plan reads one full sample per pixel.
+pub const ADAPTIVE_FROM_PASS: u32 = 2;
+
+/// The pixel pairs a film of `scene` reads together ([`film`]): its camera's
+/// image of the reflection in the sun's vertical plane ([`Camera::mirror`]),
+/// where `[render] mirror_symmetry` is on and that reflection takes pixels
+/// onto pixels; `None` otherwise.
+pub fn mirror_pairs(scene: &Scene) -> Option<Mirror> {
+    let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
+    scene
+        .render
+        .mirror_symmetry
+        .then(|| camera.mirror(scene.sun.azimuth_deg))
+        .flatten()
+}
+
+/// A scene made ready to render.
+pub struct Renderer {
+    pub scene: Scene,
+    pub atmosphere: Atmosphere,
+    pub(super) medium: Medium,
+    pub(super) camera: Camera,
+    pub(super) cmf: &'static ColourMatching,
+    /// Per-wavelength constants over the colour-matching range.
+    pub(super) lane_table: LaneTable,
+    pub(super) sun_direction: DVec3,
+    pub(super) observer_m: DVec3,
+    /// Expected-sunlight densities of camera rays, built per view direction
+    /// on first use.
+    pub(super) camera_densities: CameraDensities,
+    /// Incoming once-scattered light by direction at scattering points,
+    /// built per (altitude, solar zenith) cell on first use; only for the
+    /// options that use it (`sky_guide`, `shadow_samples`,
+    /// `sunlight_samples`, `camera_importance`); shared with the camera
+    /// densities, which read its skylight as their importance.
+    pub(super) sky_guide: Option<Arc<guide::SkyGuide>>,
+    /// The once-scattered light's table for the control variate, where the
+    /// scene's options turn it on (`control_variate`).
+    pub(super) control: Option<control::RadianceTable>,
+    /// The scene's techniques, every choice made ([`TechniquePlan::new`]).
+    pub(super) plan: TechniquePlan,
+    /// The first pass's techniques ([`TechniquePlan::first_pass`]).
+    pub(super) draft_plan: TechniquePlan,
+    /// The pixel pairs the film reads together (`mirror_symmetry`).
+    pub(super) mirror: Option<Mirror>,
+    /// The splatter, built on first use (after the draft pass).
+    pub(super) circles: OnceLock<Option<CircleSplatter>>,
+}
+
+/// Where a pixel takes its low-discrepancy numbers
+/// ([`Renderer::sequence_slot`]): sample k uses point k × `stride` +
+/// `offset` of `pixel`'s sequences.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SequenceSlot {
+    pub(super) pixel: u64,
+    pub(super) stride: u64,
+    pub(super) offset: u64,
+    /// The mirror axis to reflect the position within the pixel across.
+    pub(super) reflect: Option<MirrorAxis>,
+}
+
+/// Result of one pass.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct PassStats {
+    /// Whether every row was rendered (false if cancelled).
+    pub completed: bool,
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Paths splatted along the circles of symmetry ([`circles`]).
+    pub splat_paths: u64,
+    /// Samples (and splats) discarded as non-finite (or negative without
+    /// the control variate).
+    pub discarded: u64,
+    /// The splats among `discarded`.
+    pub splat_discarded: u64,
+}
+
+impl Renderer {
+    pub fn new(scene: &Scene) -> Result<Self, SceneError> {
+        scene.validate()?;
+        let atmosphere = Atmosphere::new(scene.atmosphere.clone());
+        let medium = Medium::new(&atmosphere);
+        let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
+        let cmf = ColourMatching::get(scene.render.observer);
+        let observer_m = DVec3::new(
+            0.0,
+            0.0,
+            scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
+        );
+        let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
+        // From above the air (where the scene refuses splatting when asked
+        // for) or without circles (the sun at the zenith or nadir), the
+        // camera's branches keep every order.
+        let circles = scene.observer.altitude_m < scene.atmosphere.top_altitude_m
+            && circles::has_circles(observer_m, sun_direction);
+        let plan = TechniquePlan::new(
+            &scene.render.integrator,
+            &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles),
+        );
+        let sky_guide = plan
+            .needs_sky_guide()
+            .then(|| Arc::new(guide::SkyGuide::new(&medium, sun_direction)));
+        let camera_densities = CameraDensities::new(&medium, observer_m, sun_direction);
+        let camera_importance = Some(plan.camera.importance).filter(|&share| share > 0.0);
+        let camera_densities = match (&sky_guide, camera_importance) {
+            (Some(guide), Some(share)) => {
+                let guide = Arc::clone(guide);
+                camera_densities.with_importance(
+                    share,
+                    Arc::new(move |medium: &Medium, x: DVec3| guide.skylight(medium, x)),
+                )
+            }
+            _ => camera_densities,
+        };
+        Ok(Self {
+            camera_densities,
+            sky_guide,
+            control: plan.control_variate.then(|| {
+                control::RadianceTable::new(
+                    medium.planet_radius_m,
+                    medium.top_radius_m,
+                    sun_direction,
+                    cmf.range_nm(),
+                )
+            }),
+            mirror: mirror_pairs(scene),
+            circles: OnceLock::new(),
+            draft_plan: plan.first_pass(),
+            plan,
+            observer_m,
+            sun_direction,
+            cmf,
+            lane_table: LaneTable::new(&medium, cmf.range_nm(), solar_source(scene)),
+            scene: scene.clone(),
+            atmosphere,
+            medium,
+            camera,
+        })
+    }
+
+    /// The scene's techniques, every choice made.
+    pub fn plan(&self) -> &TechniquePlan {
+        &self.plan
+    }
+
+    pub fn camera(&self) -> &Camera {
+        &self.camera
+    }
+
+    pub fn sun_direction(&self) -> DVec3 {
+        self.sun_direction
+    }
+
+    /// The weight of pass `pass` in the film's average: the draft's
+    /// ([`TechniquePlan::draft_weight`]) or 1.
+    pub(super) fn pass_weight(&self, pass: u32) -> f64 {
+        if pass == 0 {
+            self.plan.draft_weight
+        } else {
+            1.0
+        }
+    }
+
+    /// The integrator for pass `pass`. The first pass traces plain
+    /// delta-tracked camera paths (no camera-ray densities to build, no
+    /// branches), so the first image of a progressive render — the preview's
+    /// first frame — comes fast; every pass is an unbiased estimate, so the
+    /// film's average of them stays unbiased.
+    pub(super) fn integrator(&self, pass: u32) -> Integrator<'_> {
+        let plan = if pass == 0 {
+            &self.draft_plan
+        } else {
+            &self.plan
+        };
+        let integrator = Integrator::new(&self.medium, plan, self.sun_direction)
+            .with_camera_densities(&self.camera_densities);
+        let integrator = match &self.sky_guide {
+            Some(guide) => integrator.with_sky_guide(guide),
+            None => integrator,
+        };
+        match &self.control {
+            Some(table) => integrator.with_control(table),
+            None => integrator,
+        }
+    }
+
+    /// Wavelengths each path carries (`wavelengths_per_path`, 1–[`LANES`]).
+    pub(super) fn lanes_per_path(&self) -> usize {
+        self.scene
+            .render
+            .integrator
+            .wavelengths_per_path
+            .clamp(1, LANES)
+    }
+
+    /// Hero-rotated wavelengths for one path: lane k uses u₀ + k/n (mod 1)
+    /// through the importance CDF, so each lane is distributed by the CMF-based
+    /// density and the lanes are stratified (Wilkie et al. 2014).
+    pub(super) fn sample_lanes(&self, u0: f64) -> (SpectralLanes, Lanes) {
+        let n = self.lanes_per_path();
+        let mut wavelengths = [0.0; LANES];
+        let mut pdfs = [0.0; LANES];
+        for k in 0..LANES {
+            let (w, p) = self
+                .cmf
+                .sample_wavelength((u0 + (k % n) as f64 / n as f64).fract());
+            wavelengths[k] = w;
+            pdfs[k] = p;
+        }
+        (self.lane_table.lanes(wavelengths, n, &self.medium), pdfs)
+    }
+
+    /// Where pixel (`x`, `y`) takes its low-discrepancy numbers: a pixel
+    /// and its mirror image are read as one ([`film`]), so they share one
+    /// pixel's sequences — the lower index's, the lower pixel taking the
+    /// even points, its partner the odd ones — and a pair's samples are one
+    /// stratified set rather than two. The partner's position in its pixel
+    /// is reflected across the mirror's axis, which makes its points the
+    /// physical reflection of the ones it would have had in the lower pixel
+    /// (so the pixel-position coordinates stay stratified over the pair).
+    /// Each pixel's samples stay uniform, so its mean stays unbiased. At
+    /// fixed passes over four seed pairs, 0.96× the variance at sunset,
+    /// 0.93× at midday, 0.99× at twilight (`BENCHMARKS.md`).
+    pub(super) fn sequence_slot(&self, x: u32, y: u32) -> SequenceSlot {
+        let (width, height) = (self.scene.render.width, self.scene.render.height);
+        let pixel = u64::from(y) * u64::from(width) + u64::from(x);
+        let alone = SequenceSlot {
+            pixel,
+            stride: 1,
+            offset: 0,
+            reflect: None,
+        };
+        let Some(mirror) = self.mirror else {
+            return alone;
+        };
+        let partner =
+            mirror.partner(x as usize, y as usize, width as usize, height as usize) as u64;
+        if partner == pixel {
+            return alone;
+        }
+        let upper = pixel > partner;
+        SequenceSlot {
+            pixel: pixel.min(partner),
+            stride: 2,
+            offset: u64::from(upper),
+            reflect: upper.then_some(mirror.axis),
+        }
+    }
+
+    /// The `sample`-th XYZ sample (Y in cd m⁻²) through pixel (x, y), or
+    /// `None` if the estimate was not finite, or negative without the
+    /// control variate (with it, single estimates may be). A pixel's
+    /// samples are numbered across passes: 0 is the draft pass's, 1 the first
+    /// full pass's, then consecutively through each pass's samples (one per
+    /// pass without a plan, so the number is the pass; see [`Self::render_pass`]).
+    pub fn sample_pixel(
+        &self,
+        integrator: &Integrator<'_>,
+        x: u32,
+        y: u32,
+        sample: u64,
+    ) -> Option<[f64; 3]> {
+        self.sample_pixel_lanes(integrator, x, y, sample, false)
+            .map(|(xyz, ..)| xyz)
+    }
+
+    /// [`Self::sample_pixel`] with the sample's wavelength lanes, for the
+    /// spectral layer ([`film_spectral`]), and what it gives the `sky`,
+    /// `sun` and `ground` layers ([`film_layers`]; whether its ray meets
+    /// the ground only where `layers`).
+    pub(super) fn sample_pixel_lanes(
+        &self,
+        integrator: &Integrator<'_>,
+        x: u32,
+        y: u32,
+        sample: u64,
+        layers: bool,
+    ) -> Option<([f64; 3], SampleLanes, SampleSplit)> {
+        let width = self.scene.render.width;
+        let pixel = u64::from(y) * u64::from(width) + u64::from(x);
+        let seed = self.scene.render.seed;
+        let rng = Rng::for_sample(seed, sample, pixel);
+        let slot = self.sequence_slot(x, y);
+        // Samples 1, 2, … take the sequence's points 0, 1, … (so that every
+        // 2ᵐ of them are stratified; a mirror pair's, every other point);
+        // the draft sample 0 and samples past the sequence's end draw
+        // independent numbers.
+        let point = sample
+            .checked_sub(1)
+            .map(|k| k * slot.stride + slot.offset)
+            .filter(|&point| point < SOBOL_POINTS);
+        let mut rng = match (integrator.plan.sampler, point) {
+            (Sampler::Sobol, Some(point)) => rng.with_sobol_prefix(seed, slot.pixel, point as u32),
+            _ => rng,
+        };
+        let (u, v) = (rng.uniform(), rng.uniform());
+        let px = f64::from(x)
+            + if slot.reflect == Some(MirrorAxis::Columns) {
+                1.0 - u
+            } else {
+                u
+            };
+        let py = f64::from(y)
+            + if slot.reflect == Some(MirrorAxis::Rows) {
+                1.0 - v
+            } else {
+                v
+            };
+        let Some(dir) = self.camera.direction(px, py) else {
+            return Some(([0.0; 3], SampleLanes::default(), SampleSplit::default()));
+        };
+        // Across the passes of one pixel, u₀ follows the golden-ratio additive
+        // recurrence from a random per-pixel start (a Cranley–Patterson rotated
+        // low-discrepancy sequence): every sample is still uniform, so the
+        // pixel mean stays unbiased, but the spectrum is covered evenly and
+        // colour noise falls faster than with independent wavelengths.
+        let start = Rng::new(self.scene.render.seed, slot.pixel).uniform();
+        let step = sample * slot.stride + slot.offset;
+        let u0 = (start + step as f64 * GOLDEN_RATIO_CONJUGATE).fract();
+        let (lanes, pdfs) = self.sample_lanes(u0);
+        let light = integrator.light(self.observer_m, dir, &lanes, &mut rng);
+        let radiance = light.total;
+        let n = lanes.active;
+        let mut xyz = [0.0; 3];
+        let mut split = SampleSplit {
+            ground: layers
+                && self
+                    .medium
+                    .span(self.observer_m, dir)
+                    .is_some_and(|s| s.hits_ground),
+            ..SampleSplit::default()
+        };
+        let mut spectral = SampleLanes {
+            active: n,
+            ..SampleLanes::default()
+        };
+        for j in 0..n {
+            let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
+            let w = K_M * radiance[j] / (pdfs[j] * n as f64);
+            let w_disc = K_M * light.disc[j] / (pdfs[j] * n as f64);
+            for c in 0..3 {
+                xyz[c] += w * bar[c];
+                split.sun_xyz[c] += w_disc * bar[c];
+            }
+            spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j];
+            spectral.values[j] = radiance[j] / (pdfs[j] * n as f64);
+        }
+        let signed = integrator.signed_estimates();
+        xyz.iter()
+            .all(|v| v.is_finite() && (signed || *v >= 0.0))
+            .then_some((xyz, spectral, split))
+    }
+
+    /// Add pass number `pass` to `film`: one sample per pixel, or, once the
+    /// film is planned, each pixel's planned number of samples. With
+    /// adaptive sampling on, the plan is made from the image when pass
+    /// [`ADAPTIVE_FROM_PASS`] starts (see [`film`]). Stops
+    /// between rows once `cancelled()` returns true. `film` must come from
+    /// [`Self::new_film`]: mirror partners share their sequences, which only
+    /// a film that reads them as pairs (and plans them so) averages without
+    /// bias.
+    pub fn render_pass(
+        &self,
+        film: &mut Film,
+        pass: u32,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> PassStats {
+        assert!(
+            film.mirror == self.mirror && film.splats() == self.plan.circle_splatting,
+            "render_pass: a film from Renderer::new_film (its mirror pairs, its splat layer) is needed"
+        );
+        // A part that starts later plans after its own first pass.
+        if self.scene.render.adaptive_sampling
+            && pass == ADAPTIVE_FROM_PASS.max(film.first_pass + 1)
+            && !film.is_planned()
+            && film.complete_passes() == pass
+        {
+            film.plan_samples();
+        }
+        // The variance layer's batch is this pass, where every row starts it.
+        let variance_batch = film.variance.is_some() && film.row_passes.iter().all(|&p| p == pass);
+        if variance_batch {
+            film.start_variance_pass();
+        }
+        let integrator = self.integrator(pass);
+        // Pixels the splats leave out (Camera::pixel_density_bounded) keep
+        // the camera's branches from the air.
+        let splatting = (self.plan.circle_splatting && pass > 0)
+            .then(|| self.integrator(pass).with_circle_splatting());
+        let (mut splat_paths, mut splat_discarded) = (0, 0);
+        if let Some(splatting) = &splatting {
+            (splat_paths, splat_discarded) = self.splat_pass(film, pass, splatting, cancelled);
+        }
+        let width = film.width as usize;
+        let discarded = AtomicU64::new(splat_discarded);
+        let paths = AtomicU64::new(0);
+        let weight = self.pass_weight(pass);
+        let planned = film.is_planned();
+        let splats = film.splats();
+        // The film weighs each planned sample 1 (`Film::xyz`).
+        debug_assert!(!planned || weight == 1.0);
+        let plan = &film.plan;
+        let region = film.region;
+        // Sample numbers: a single render numbers each pixel's samples
+        // consecutively. A part of a split render that starts at a later
+        // pass with adaptive sampling numbers them pass × 16 + k instead:
+        // the earlier passes of a render that starts at 0 take numbers
+        // below 16 × its end, so parts never share a sample's random
+        // numbers. Without adaptive sampling every pass takes the number
+        // of the pass, as in a single render.
+        let apart = film.first_pass > 0 && self.scene.render.adaptive_sampling;
+        let per_pass = u64::from(film::MAX_SAMPLES_PER_PASS);
+        // The spectral layer's rows (empty without one), one lock each so
+        // the rows' closure below keeps its shape.
+        let bands = film.spectral.as_ref().map_or(0, |s| s.bands);
+        let spectral_rows: Vec<std::sync::Mutex<&mut [f32]>> = match &mut film.spectral {
+            Some(s) => s
+                .rows
+                .iter_mut()
+                .map(|r| std::sync::Mutex::new(r.as_mut_slice()))
+                .collect(),
+            None => film
+                .row_passes
+                .iter()
+                .map(|_| std::sync::Mutex::new(&mut [][..]))
+                .collect(),
+        };
+        // The sky/sun/ground layers' rows, likewise (`None` without them).
+        let with_layers = film.layers.is_some();
+        let layer_rows: Vec<std::sync::Mutex<Option<film_layers::LayerRow<'_>>>> =
+            match &mut film.layers {
+                Some(l) => l.rows(width).into_iter().map(|r| Some(r).into()).collect(),
+                None => film.row_passes.iter().map(|_| None.into()).collect(),
+            };
+        let variance_rows: Vec<std::sync::Mutex<Option<film_layers::VarianceRow<'_>>>> =
+            match &mut film.variance {
+                Some(v) => v.rows(width).into_iter().map(|r| Some(r).into()).collect(),
+                None => film.row_passes.iter().map(|_| None.into()).collect(),
+            };
+        film.xyz_sum
+            .par_chunks_mut(width)
+            .zip(film.row_passes.par_iter_mut())
+            .zip(film.row_weights.par_iter_mut())
+            .zip(film.row_planned_passes.par_iter_mut())
+            .enumerate()
+            // Rows differ up to 16× in cost under an adaptive plan (the
+            // horizon's glow, the aureole): hand them out one at a time so
+            // both threads stay busy to the pass's end.
+            .with_max_len(1)
+            .for_each(|(y, (((row, passes), row_weight), planned_passes))| {
+                if cancelled() || *passes != pass {
+                    return;
+                }
+                // Each row's lock is taken by the one thread that renders
+                // the row: never contended.
+                let mut spectral = spectral_rows[y]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                if splats {
+                    // As `Film::drop_draft` drops the row's XYZ.
+                    if *passes == 1 {
+                        spectral.fill(0.0);
+                    }
+                    Film::drop_draft(row, *passes, row_weight);
+                }
+                let mut layer_row = layer_rows[y]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                if let Some(layer_row) = layer_row.as_mut().filter(|_| splats && *passes == 1) {
+                    layer_row.clear();
+                }
+                let mut variance_row = variance_rows[y]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
+                let mut row_paths = 0;
+                // Outside a part's tile, the row's pass counts as done with
+                // no samples: the merge takes those pixels from other parts.
+                let (x0, x1) = match region {
+                    Some(t) if !t.contains_row(y as u32) => (0, 0),
+                    Some(t) => (t.x as usize, (t.x + t.width) as usize),
+                    None => (0, width),
+                };
+                for (x, sum) in row.iter_mut().enumerate().take(x1).skip(x0) {
+                    // Planned samples are numbered on from the unplanned
+                    // passes' (one each), consecutively per pixel.
+                    let (first, count) = match (planned, apart) {
+                        (true, false) => {
+                            let m = u64::from(plan[y * width + x]);
+                            let before = u64::from(*passes - *planned_passes);
+                            (before + u64::from(*planned_passes) * m, m)
+                        }
+                        (true, true) => {
+                            (u64::from(pass) * per_pass, u64::from(plan[y * width + x]))
+                        }
+                        (false, true) => (u64::from(pass) * per_pass, 1),
+                        (false, false) => (u64::from(pass), 1),
+                    };
+                    let integrator = match &splatting {
+                        Some(s) if self.camera.pixel_density_bounded(x as u32, y as u32) => s,
+                        _ => &integrator,
+                    };
+                    for sample in first..first + count {
+                        let sampled = self.sample_pixel_lanes(
+                            integrator,
+                            x as u32,
+                            y as u32,
+                            sample,
+                            with_layers,
+                        );
+                        match sampled {
+                            Some((xyz, lanes, split)) => {
+                                for c in 0..3 {
+                                    sum[c] += ExactSum::from_f64(weight * xyz[c]);
+                                }
+                                if let Some(layer_row) = layer_row.as_mut() {
+                                    layer_row.add(x, weight, xyz, &split);
+                                }
+                                if let Some(variance_row) = variance_row.as_mut() {
+                                    variance_row.add(x, weight, xyz[1]);
+                                }
+                                if bands > 0 {
+                                    lanes.add_to(&mut spectral[x * bands..(x + 1) * bands], weight);
+                                }
+                            }
+                            None => {
+                                discarded.fetch_add(1, Ordering::Relaxed);
+                            }
+                        }
+                    }
+                    row_paths += count;
+                }
+                *passes += 1;
+                *row_weight += ExactSum::from_f64(weight);
+                if planned {
+                    *planned_passes += 1;
+                }
+                paths.fetch_add(row_paths, Ordering::Relaxed);
+            });
+        let discarded = discarded.into_inner();
+        film.discarded += discarded;
+        film.splat_discarded += splat_discarded;
+        let completed = film.row_passes.iter().all(|&p| p > pass);
+        if variance_batch && completed {
+            film.end_variance_pass(pass, splat_paths);
+        }
+        PassStats {
+            completed,
+            paths: paths.into_inner(),
+            splat_paths,
+            discarded,
+            splat_discarded,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn camera_branches_follow_the_guides_importance_with_the_sun_low() {
+        // Below 3° the renderer builds its camera densities with the guide's
+        // skylight as importance (`camera_importance`), so their skylight
+        // component — where camera paths branch — differs from the plain
+        // one; by day it is the plain one.
+        for (preset, weighted) in [("twilight", true), ("sunset", true), ("midday", false)] {
+            let r = Renderer::new(&Scene::preset(preset).unwrap()).unwrap();
+            let plain = CameraDensities::new(&r.medium, r.observer_m, r.sun_direction);
+            let dir = direction_from_az_el(r.scene.sun.azimuth_deg, 10.0);
+            let span = r.medium.span(r.observer_m, dir).unwrap();
+            let own = r.camera_densities.density(&r.medium, dir, span);
+            let plain = plain.density(&r.medium, dir, span);
+            let differs = [0.25, 0.5, 0.75].iter().any(|&u| {
+                own.sample(sunlight::Component::Skylight, u)
+                    != plain.sample(sunlight::Component::Skylight, u)
+            });
+            assert_eq!(differs, weighted, "{preset}");
+        }
+    }
+
+    #[test]
+    fn mirror_partners_share_one_sequence() {
+        // The sunset preset's sun is at azimuth 270°: on a 26-column equirect
+        // map, column x mirrors 12 − x (mod 26), and columns 6 and 19 are on
+        // the mirror line.
+        let mut scene = Scene::preset("sunset").unwrap();
+        scene.render.width = 26;
+        scene.render.height = 12;
+        let r = Renderer::new(&scene).unwrap();
+        for y in [0, 7] {
+            for x in 0..26 {
+                let (own, other) = (r.sequence_slot(x, y), r.sequence_slot((38 - x) % 26, y));
+                if x == 6 || x == 19 {
+                    assert_eq!((own.stride, own.offset, own.reflect), (1, 0, None));
+                    assert_eq!(own.pixel, u64::from(y * 26 + x));
+                    continue;
+                }
+                assert_eq!(own.pixel, other.pixel);
+                assert_eq!((own.stride, other.stride), (2, 2));
+                assert_eq!(own.offset + other.offset, 1);
+                let lower = own.offset == 0;
+                assert_eq!(own.reflect, (!lower).then_some(MirrorAxis::Columns));
+                let column = if lower { x } else { (38 - x) % 26 };
+                assert_eq!(own.pixel, u64::from(y * 26 + column));
+            }
+        }
+        scene.render.mirror_symmetry = false;
+        let alone = Renderer::new(&scene).unwrap().sequence_slot(3, 2);
+        assert_eq!(
+            (alone.pixel, alone.stride, alone.offset),
+            (2 * 26 + 3, 1, 0)
+        );
+    }
+
+    #[test]
+    fn splatting_where_the_scene_has_circles_and_the_observer_is_in_the_air() {
+        let small = |preset: &str| {
+            let mut scene = Scene::preset(preset).unwrap();
+            scene.render.width = 16;
+            scene.render.height = 8;
+            scene
+        };
+        // Twilight: the draft pass splats nothing, the first full pass
+        // one point per pixel (from the prior), the later ones two.
+        let twilight = Renderer::new(&small("twilight")).unwrap();
+        let mut film = twilight.new_film();
+        assert!(film.splats());
+        let stats: Vec<PassStats> = (0..4)
+            .map(|pass| twilight.render_pass(&mut film, pass, &|| false))
+            .collect();
+        assert_eq!(stats[0].splat_paths, 0);
+        assert_eq!(stats[1].splat_paths, 16 * 8);
+        for s in &stats[2..] {
+            assert_eq!(s.splat_paths, 16 * 8 * 2);
+        }
+        assert_eq!(film.splat_paths, 5 * 16 * 8);
+        // The sun below the horizon but the observer above the air, or the
+        // sun at the nadir: unset means off.
+        let mut space = small("space");
+        space.sun.elevation_deg = -4.0;
+        assert!(!Renderer::new(&space).unwrap().new_film().splats());
+        let mut nadir = small("twilight");
+        nadir.sun.elevation_deg = -90.0;
+        assert!(!Renderer::new(&nadir).unwrap().new_film().splats());
+        // With the sun low (sunset, 2°): on; high (midday, 45°): off.
+        assert!(Renderer::new(&small("sunset")).unwrap().new_film().splats());
+        assert!(!Renderer::new(&small("midday")).unwrap().new_film().splats());
+    }
+
+    /// The memory estimate covers what a render holds: the film's buffers
+    /// after its plan, and the RGB image beside them.
+    #[test]
+    fn the_memory_estimate_covers_the_film_and_the_image() {
+        for name in ["sunset", "midday"] {
+            let mut scene = Scene::preset(name).unwrap();
+            scene.render.width = 16;
+            scene.render.height = 8;
+            let renderer = Renderer::new(&scene).unwrap();
+            renderer.check_memory().unwrap();
+            let mut film = renderer.try_new_film().unwrap();
+            for pass in 0..3 {
+                renderer.render_pass(&mut film, pass, &|| false);
+            }
+            assert!(film.is_planned());
+            let image = film.try_to_rgb().unwrap();
+            let held = film.buffer_bytes() + std::mem::size_of_val(image.pixels.as_slice());
+            let needed = renderer.memory_needed_bytes() as usize;
+            assert!(
+                held <= needed && needed < 4 * held,
+                "{name}: {held} held, {needed} estimated"
+            );
+        }
+    }
+
+    /// The sunset preset at 24×12, with adaptive sampling on or off, each
+    /// pixel read alone (no mirror pairs) from its camera samples alone (no
+    /// splats).
+    fn small_sunset(adaptive_sampling: bool) -> Renderer {
+        let mut scene = Scene::preset("sunset").unwrap();
+        scene.render.width = 24;
+        scene.render.height = 12;
+        scene.render.adaptive_sampling = adaptive_sampling;
+        scene.render.mirror_symmetry = false;
+        scene.render.integrator.circle_splatting = Some(false);
+        Renderer::new(&scene).unwrap()
+    }
+
+    #[test]
+    fn the_film_weights_every_sample_by_its_pass() {
+        // The film's pixel = Σ w·sample / Σ w over the pixel's samples: the
+        // draft (pass 0) weighted by `draft_weight`, every later sample 1 — with adaptive
+        // sampling the m samples a planned pixel takes per pass from pass 2
+        // on, numbered consecutively (exact sums: f64 rounding only).
+        let renderer = small_sunset(true);
+        let mut film = renderer.new_film();
+        for pass in 0..4 {
+            renderer.render_pass(&mut film, pass, &|| false);
+        }
+        assert!(film.is_planned());
+        let mut planned = Vec::new();
+        for y in 0..12 {
+            for x in 0..24 {
+                let m = film.samples_per_pass((y * 24 + x) as usize);
+                planned.push(m);
+                if (x + y) % 5 != 0 {
+                    continue;
+                }
+                let mut sum = [0.0; 3];
+                let mut weights = 0.0;
+                let mut add = |pass: u32, sample: u64| {
+                    let integrator = renderer.integrator(pass);
+                    let xyz = renderer.sample_pixel(&integrator, x, y, sample).unwrap();
+                    let w = renderer.pass_weight(pass);
+                    weights += w;
+                    for c in 0..3 {
+                        sum[c] += w * xyz[c];
+                    }
+                };
+                add(0, 0);
+                add(1, 1);
+                for sample in 2..2 + 2 * u64::from(m) {
+                    add(2 + ((sample - 2) / u64::from(m)) as u32, sample);
+                }
+                let draft = renderer.pass_weight(0);
+                assert!((weights - (draft + 1.0 + 2.0 * f64::from(m))).abs() < 1e-12);
+                let got = film.xyz(x, y);
+                for c in 0..3 {
+                    let expected = sum[c] / weights;
+                    assert!(
+                        (got[c] - expected).abs() <= 1e-12 * expected.abs() + 1e-18,
+                        "pixel ({x}, {y}) channel {c}: {} vs {expected}",
+                        got[c]
+                    );
+                }
+            }
+        }
+        // The sunset glow plans more samples than the clear sky above it.
+        assert!(planned.iter().any(|&m| m > 1) && planned.contains(&1));
+    }
+
+    #[test]
+    fn without_adaptive_sampling_every_pass_takes_one_sample() {
+        let renderer = small_sunset(false);
+        let mut film = renderer.new_film();
+        for pass in 0..4 {
+            let stats = renderer.render_pass(&mut film, pass, &|| false);
+            assert_eq!(stats.paths, 24 * 12);
+        }
+        assert!(!film.is_planned());
+    }
+}
