@@ -18,7 +18,6 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-use super::film::{Mirror, MirrorAxis};
 use crate::scene::{CameraKind, CameraParams};
 
 /// Unit direction for an azimuth (clockwise from north) and elevation, degrees.
@@ -287,6 +286,57 @@ impl Camera {
                 ))
             }
         }
+    }
+}
+
+/// Which pixel lines a [`Mirror`] reflects.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MirrorAxis {
+    /// Column x ↦ (c − 1 − x) mod width, rows unchanged.
+    Columns,
+    /// Row y ↦ (c − 1 − y) mod height, columns unchanged.
+    Rows,
+}
+
+/// A reflection of the image onto itself that takes every pixel's footprint
+/// exactly onto a pixel's (its own on the mirror line): the sun's vertical
+/// plane as the camera sees it (see the module documentation).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Mirror {
+    pub axis: MirrorAxis,
+    /// c in the line map i ↦ (c − 1 − i) mod n, 0 ≤ c < n (n the lines).
+    pub centre: u32,
+}
+
+impl Mirror {
+    /// The line that line `i` of `n` maps to.
+    pub(super) fn line(self, i: usize, n: usize) -> usize {
+        (self.centre as usize + 2 * n - 1 - i) % n
+    }
+
+    /// Row-major index of the mirror image of pixel (`x`, `y`).
+    pub fn partner(self, x: usize, y: usize, width: usize, height: usize) -> usize {
+        match self.axis {
+            MirrorAxis::Columns => y * width + self.line(x, width),
+            MirrorAxis::Rows => self.line(y, height) * width + x,
+        }
+    }
+
+    /// One line of each mirror pair (or fixed line), consecutive from ⌊c/2⌋
+    /// (mod n): neighbours in the image stay neighbours in the folded one.
+    pub(super) fn canonical_lines(self, n: usize) -> Vec<usize> {
+        let mut taken = vec![false; n];
+        let mut lines = Vec::with_capacity(n / 2 + 1);
+        for k in 0..n {
+            let i = (self.centre as usize / 2 + k) % n;
+            if taken[i] {
+                break;
+            }
+            taken[i] = true;
+            taken[self.line(i, n)] = true;
+            lines.push(i);
+        }
+        lines
     }
 }
 

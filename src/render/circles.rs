@@ -127,18 +127,7 @@ const TABLE_WAVELENGTH_NM: f64 = 550.0;
 /// [`Camera::pixel_density_bounded`]).
 const TABLE_MIN_COS: f64 = 0.05;
 
-/// One path's contribution to one pixel.
-#[derive(Clone, Copy, Debug)]
-pub struct Splat {
-    /// Row-major pixel index.
-    pub pixel: u32,
-    /// XYZ (Y in cd m⁻²) times the number of paths it is averaged over.
-    pub xyz: [f64; 3],
-    /// The same light by wavelength lane, for a spectral film: the lanes'
-    /// radiance (W m⁻² sr⁻¹ nm⁻¹) times the splat's weight; the renderer
-    /// divides by the lanes' densities ([`super::Renderer`]'s splat pass).
-    pub lanes: super::film_spectral::SplatLanes,
-}
+pub use super::film_spectral::Splat;
 
 /// The frame of the scene's symmetry: the sun's axis through the Earth's
 /// centre, and the observer's place about it.

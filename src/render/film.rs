@@ -33,85 +33,16 @@
 //! then works on the *folded* image (one value per pair) and gives a pair's
 //! pixels the same count, read from other pairs only.
 
-use rayon::prelude::*;
-
+use super::adaptive::plan;
+pub use super::adaptive::MAX_SAMPLES_PER_PASS;
+use super::alloc::try_filled;
+use super::camera::{Mirror, MirrorAxis};
 use super::exact::ExactSum;
+use super::film_layers::{LayerSums, VarianceSums};
+use super::film_spectral::SpectralFilm;
+use super::parts::{pick, PartData, PassRange, Tile};
 use crate::output::RgbImage;
 use crate::spectrum::xyz_to_rec709;
-
-/// Most samples per pass a planned pixel takes. 16 rather than 8 since the
-/// mirror pairs: with a plan scale of 1.25, 0.92× the variance
-/// per CPU second at twilight (fixed passes, two seed pairs; 0.91× per path
-/// over four), 0.99× at sunset and midday (`BENCHMARKS.md`).
-pub const MAX_SAMPLES_PER_PASS: u8 = 16;
-/// Half-width of the neighbourhood whose spread plans a pixel's samples,
-/// pixels (a 9×9 window without its centre).
-const PLAN_RADIUS: usize = 4;
-/// Samples per pass ≈ this × (neighbourhood spread / median spread), clamped
-/// to 1–[`MAX_SAMPLES_PER_PASS`]. 1.0 and 1.5 measured alike on the four
-/// benchmark scenes (time ratios of uniform sampling 1.15–1.41 and
-/// 1.14–1.50, `BENCHMARKS.md`); 1.5 won at midday and twilight.
-/// On the folded image of mirror pairs, 1.25 with a cap of 16.
-const PLAN_SCALE: f64 = 1.25;
-/// Resolution of the spreads' histogram, bins per octave: the median is the
-/// geometric centre of the lower median's bin, within 2^(1/16) (4.4 %) of
-/// it — plenty for a sample count.
-const BINS_PER_OCTAVE: f32 = 8.0;
-/// log₂ of the smallest positive f32 is −149: bin = ⌊(log₂ σ + 150) × 8⌋.
-const LOG2_OFFSET: f32 = 150.0;
-/// Bins: 0 for σ = 0 (not counted), then up to log₂ σ = 128.
-const BINS: usize = ((LOG2_OFFSET + 129.0) * BINS_PER_OCTAVE) as usize;
-
-/// Which pixel lines a [`Mirror`] reflects.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum MirrorAxis {
-    /// Column x ↦ (c − 1 − x) mod width, rows unchanged.
-    Columns,
-    /// Row y ↦ (c − 1 − y) mod height, columns unchanged.
-    Rows,
-}
-
-/// A reflection of the image onto itself that takes every pixel's footprint
-/// exactly onto a pixel's (its own on the mirror line): the sun's vertical
-/// plane as the camera sees it (see the module documentation).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Mirror {
-    pub axis: MirrorAxis,
-    /// c in the line map i ↦ (c − 1 − i) mod n, 0 ≤ c < n (n the lines).
-    pub centre: u32,
-}
-
-impl Mirror {
-    /// The line that line `i` of `n` maps to.
-    fn line(self, i: usize, n: usize) -> usize {
-        (self.centre as usize + 2 * n - 1 - i) % n
-    }
-
-    /// Row-major index of the mirror image of pixel (`x`, `y`).
-    pub fn partner(self, x: usize, y: usize, width: usize, height: usize) -> usize {
-        match self.axis {
-            MirrorAxis::Columns => y * width + self.line(x, width),
-            MirrorAxis::Rows => self.line(y, height) * width + x,
-        }
-    }
-
-    /// One line of each mirror pair (or fixed line), consecutive from ⌊c/2⌋
-    /// (mod n): neighbours in the image stay neighbours in the folded one.
-    fn canonical_lines(self, n: usize) -> Vec<usize> {
-        let mut taken = vec![false; n];
-        let mut lines = Vec::with_capacity(n / 2 + 1);
-        for k in 0..n {
-            let i = (self.centre as usize / 2 + k) % n;
-            if taken[i] {
-                break;
-            }
-            taken[i] = true;
-            taken[self.line(i, n)] = true;
-            lines.push(i);
-        }
-        lines
-    }
-}
 
 #[derive(Clone, Debug)]
 pub struct Film {
@@ -159,18 +90,6 @@ pub struct Film {
     pub(crate) layers: Option<super::film_layers::LayerSums>,
     /// The sums of the `variance` layer, where it is asked for.
     pub(crate) variance: Option<super::film_layers::VarianceSums>,
-}
-
-/// `n` copies of `value`, or an error where the memory is not there (not
-/// an abort, as `vec!` gives).
-pub(crate) fn try_filled<T: Clone>(
-    n: usize,
-    value: T,
-) -> Result<Vec<T>, std::collections::TryReserveError> {
-    let mut v = Vec::new();
-    v.try_reserve_exact(n)?;
-    v.resize(n, value);
-    Ok(v)
 }
 
 impl Film {
@@ -231,7 +150,7 @@ impl Film {
     }
 
     /// Adds one batch of splats from `paths` paths.
-    pub(crate) fn add_splats(&mut self, splats: &[super::circles::Splat], paths: u64) {
+    pub(crate) fn add_splats(&mut self, splats: &[super::film_spectral::Splat], paths: u64) {
         for s in splats {
             let sum = &mut self.splat_sum[s.pixel as usize];
             for (v, x) in sum.iter_mut().zip(s.xyz) {
@@ -463,125 +382,316 @@ impl Film {
     }
 }
 
-/// Samples per pass for a `width`×`height` image of luminances (row-major):
-/// [`PLAN_SCALE`] × σᵢ / σ̃ᵢ, rounded and clamped to
-/// 1–[`MAX_SAMPLES_PER_PASS`]. σᵢ is the standard deviation of the values in
-/// the window Wᵢ of (2R+1)² pixels about pixel i (clipped at the borders)
-/// *without* pixel i. σ̃ᵢ is the median of the positive σⱼ over the pixels j
-/// outside Wᵢ — exactly those whose windows miss pixel i — so no part of
-/// the plan of pixel i reads pixel i's value. A median, not a mean: the
-/// sun's disc or one firefly in a window makes its σⱼ millions of times the
-/// rest, and a mean would then give every other pixel one sample.
-fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
-    let spread = spreads(luminance, width, height);
-    let bins: Vec<u16> = spread.iter().map(|&s| spread_bin(s)).collect();
-    // cumulative[b] = positive spreads in bins ≤ b.
-    let mut cumulative = vec![0u32; BINS];
-    for &b in &bins {
-        cumulative[usize::from(b)] += u32::from(b > 0);
+impl Film {
+    /// The film with the sums of the `sky`, `sun` and `ground` layers;
+    /// `centre_ground[i]`: whether the ray through pixel `i`'s centre
+    /// meets the ground.
+    pub(crate) fn try_with_layers(
+        mut self,
+        centre_ground: Vec<bool>,
+    ) -> Result<Self, std::collections::TryReserveError> {
+        let mut sun = Vec::new();
+        sun.try_reserve_exact(self.height as usize)?;
+        sun.resize(self.height as usize, Vec::new());
+        self.layers = Some(LayerSums {
+            ground: try_filled(self.xyz_sum.len(), [ExactSum::ZERO; 3])?,
+            sun,
+            centre_ground,
+        });
+        Ok(self)
     }
-    for b in 1..BINS {
-        cumulative[b] += cumulative[b - 1];
+
+    /// The `sky`, `sun` and `ground` images (linear Rec.709, cd m⁻² for
+    /// Y, read as [`Film::xyz`] reads the beauty), row-major; `None`
+    /// without layer sums.
+    pub fn try_layer_images(
+        &self,
+    ) -> Result<Option<[Vec<[f32; 3]>; 3]>, std::collections::TryReserveError> {
+        let Some(layers) = &self.layers else {
+            return Ok(None);
+        };
+        let w = self.width as usize;
+        let n = self.xyz_sum.len();
+        let sun = |i: usize| layers.sun_at(i, w);
+        let ground = |i: usize| layers.ground[i];
+        let sky = |i: usize| {
+            let (s, g, d) = (self.xyz_sum[i], ground(i), sun(i));
+            [0, 1, 2].map(|c| s[c] - g[c] - d[c])
+        };
+        let in_ground = |i: usize| layers.centre_ground[i];
+        let in_sky = |i: usize| !layers.centre_ground[i];
+        let never = |_: usize| false;
+        let mut images = [Vec::new(), Vec::new(), Vec::new()];
+        for image in &mut images {
+            image.try_reserve_exact(n)?;
+        }
+        for i in 0..n {
+            let rgb = |xyz: [f64; 3]| xyz_to_rec709(xyz).map(|v| v as f32);
+            images[0].push(rgb(self.mean_with(i, &sky, &in_sky)));
+            images[1].push(rgb(self.mean_with(i, &sun, &never)));
+            images[2].push(rgb(self.mean_with(i, &ground, &in_ground)));
+        }
+        Ok(Some(images))
     }
-    let positive = cumulative[BINS - 1];
-    let r = PLAN_RADIUS;
-    let mut plan = vec![1u8; width * height];
-    plan.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
-        let rows = y.saturating_sub(r)..(y + r + 1).min(height);
-        let mut window = [0u16; (2 * PLAN_RADIUS + 1) * (2 * PLAN_RADIUS + 1)];
-        for (x, m) in row.iter_mut().enumerate() {
-            let columns = x.saturating_sub(r)..(x + r + 1).min(width);
-            let mut n = 0;
-            for yy in rows.clone() {
-                for &b in &bins[yy * width + columns.start..yy * width + columns.end] {
-                    if b > 0 {
-                        window[n] = b;
-                        n += 1;
+}
+
+impl Film {
+    /// The film with the sums of the `variance` layer.
+    pub(crate) fn try_with_variance(mut self) -> Result<Self, std::collections::TryReserveError> {
+        let n = self.xyz_sum.len();
+        self.variance = Some(VarianceSums {
+            pass_y: try_filled(n, 0.0)?,
+            pass_w: try_filled(n, 0.0)?,
+            pass_splat_y: if self.splats() {
+                try_filled(n, 0.0)?
+            } else {
+                Vec::new()
+            },
+            sum_w: try_filled(n, 0.0)?,
+            sum_we: try_filled(n, 0.0)?,
+            sum_wee: try_filled(n, 0.0)?,
+            batches: 0,
+        });
+        Ok(self)
+    }
+
+    /// Empties the pass sums before pass `pass`.
+    pub(crate) fn start_variance_pass(&mut self) {
+        if let Some(v) = &mut self.variance {
+            v.pass_y.fill(0.0);
+            v.pass_w.fill(0.0);
+            v.pass_splat_y.fill(0.0);
+        }
+    }
+
+    /// Counts the pass just rendered by every row (`pass`, with
+    /// `splat_paths` splat paths) as one batch; the draft pass is not one.
+    pub(crate) fn end_variance_pass(&mut self, pass: u32, splat_paths: u64) {
+        let (w, h) = (self.width as usize, self.height as usize);
+        let mirror = self.mirror;
+        let Some(v) = self.variance.as_mut().filter(|_| pass >= 1) else {
+            return;
+        };
+        for i in 0..w * h {
+            let partner = mirror
+                .map(|m| m.partner(i % w, i / w, w, h))
+                .filter(|&p| p != i);
+            let pair = || std::iter::once(i).chain(partner);
+            let weight: f64 = pair().map(|p| v.pass_w[p]).sum();
+            if weight <= 0.0 {
+                continue;
+            }
+            let mut e = pair().map(|p| v.pass_y[p]).sum::<f64>() / weight;
+            if splat_paths > 0 && !v.pass_splat_y.is_empty() {
+                let n = pair().count() as f64;
+                let splats: f64 = pair().map(|p| f64::from(v.pass_splat_y[p])).sum();
+                e += splats / (n * splat_paths as f64);
+            }
+            v.sum_w[i] += weight;
+            v.sum_we[i] += weight * e;
+            v.sum_wee[i] += weight * e * e;
+        }
+        v.batches += 1;
+    }
+
+    /// The `variance.Y` plane: per pixel the estimated variance of its mean
+    /// luminance, (cd m⁻²)²; `None` without variance sums or before two
+    /// full passes.
+    pub fn variance_plane(&self) -> Option<Vec<f32>> {
+        let v = self.variance.as_ref().filter(|v| v.batches >= 2)?;
+        let p = f64::from(v.batches);
+        Some(
+            (0..self.xyz_sum.len())
+                .map(|i| {
+                    let (w, we, wee) = (v.sum_w[i], v.sum_we[i], v.sum_wee[i]);
+                    if w <= 0.0 {
+                        return 0.0;
+                    }
+                    ((wee - we * we / w).max(0.0) / ((p - 1.0) * w)) as f32
+                })
+                .collect(),
+        )
+    }
+}
+
+impl Film {
+    /// The film with a spectral layer of `bands` bands.
+    pub(crate) fn try_with_spectral(
+        mut self,
+        bands: u32,
+    ) -> Result<Self, std::collections::TryReserveError> {
+        self.spectral = Some(SpectralFilm::try_new(
+            self.width,
+            self.height,
+            bands,
+            self.splats(),
+        )?);
+        Ok(self)
+    }
+
+    /// The spectral image, one row-major plane per band (W m⁻² sr⁻¹ nm⁻¹,
+    /// band-averaged), normalised as [`Film::xyz`] normalises the XYZ sums;
+    /// `None` without a spectral layer.
+    pub fn try_spectral_planes(
+        &self,
+    ) -> Result<Option<Vec<Vec<f32>>>, std::collections::TryReserveError> {
+        let Some(spectral) = &self.spectral else {
+            return Ok(None);
+        };
+        let (w, h, bands) = (self.width as usize, self.height as usize, spectral.bands);
+        let mut planes = Vec::new();
+        planes.try_reserve_exact(bands)?;
+        for _ in 0..bands {
+            planes.push(try_filled(w * h, 0.0f32)?);
+        }
+        let camera = |i: usize| &spectral.rows[i / w][(i % w) * bands..(i % w + 1) * bands];
+        let mut mean = vec![0.0f64; bands];
+        for i in 0..w * h {
+            // The same reading as `Film::mean`: a pixel with its mirror
+            // partner; with splats, a row still on its draft alone, later
+            // rows the camera mean plus the splats'.
+            let partner = self
+                .mirror
+                .map(|m| m.partner(i % w, i / w, w, h))
+                .filter(|&p| p != i);
+            let full = |p: usize| self.row_passes[p / w] >= 2;
+            let (partner, splats) = if !self.splats() {
+                (partner, false)
+            } else if !full(i) {
+                (None, false)
+            } else {
+                (partner.filter(|&p| full(p)), self.splat_paths > 0)
+            };
+            let mut weight = self.pixel_weight(i);
+            for (m, &v) in mean.iter_mut().zip(camera(i)) {
+                *m = f64::from(v);
+            }
+            if let Some(p) = partner {
+                weight += self.pixel_weight(p);
+                for (m, &v) in mean.iter_mut().zip(camera(p)) {
+                    *m += f64::from(v);
+                }
+            }
+            if weight > 0.0 {
+                for m in &mut mean {
+                    *m /= weight;
+                }
+            }
+            if splats {
+                let n = if partner.is_some() { 2.0 } else { 1.0 };
+                let scale = 1.0 / (n * self.splat_paths as f64);
+                for p in std::iter::once(i).chain(partner) {
+                    let s = &spectral.splat_sum[p * bands..(p + 1) * bands];
+                    for (m, &v) in mean.iter_mut().zip(s) {
+                        *m += f64::from(v) * scale;
                     }
                 }
             }
-            let far = positive - n as u32;
-            if far == 0 {
-                continue;
-            }
-            // The far set's lower median: the first bin b whose far count
-            // (cumulative − the window's) passes rank k. That count grows
-            // with b, so bisect between the bins where the whole image's
-            // count passes k and k + n.
-            let k = (far - 1) / 2;
-            let far_below = |b: usize| {
-                cumulative[b] - window[..n].iter().filter(|&&w| usize::from(w) <= b).count() as u32
-            };
-            let mut lo = cumulative.partition_point(|&c| c <= k);
-            let mut hi = cumulative.partition_point(|&c| c <= k + n as u32);
-            while lo < hi {
-                let mid = usize::midpoint(lo, hi);
-                if far_below(mid) > k {
-                    hi = mid;
-                } else {
-                    lo = mid + 1;
-                }
-            }
-            let samples = PLAN_SCALE * f64::from(spread[y * width + x]) / bin_centre(lo);
-            if samples.is_finite() {
-                *m = samples.round().clamp(1.0, f64::from(MAX_SAMPLES_PER_PASS)) as u8;
+            for (plane, m) in planes.iter_mut().zip(&mean) {
+                plane[i] = *m as f32;
             }
         }
-    });
-    plan
-}
-
-/// The standard deviation σᵢ of the luminance over each pixel's window of
-/// (2R+1)² pixels, R = [`PLAN_RADIUS`], clipped at the borders, *without*
-/// the pixel itself (0 with fewer than two others). Each window is read
-/// afresh, its centre skipped: pixel i's value enters no sum of σᵢ, not even
-/// through rounding (sliding sums that add and later subtract it would keep
-/// a trace of it; so would subtracting it from a total).
-fn spreads(luminance: &[f32], width: usize, height: usize) -> Vec<f32> {
-    let r = PLAN_RADIUS;
-    let mut spread = vec![0.0f32; width * height];
-    spread
-        .par_chunks_mut(width)
-        .enumerate()
-        .for_each(|(y, row)| {
-            let rows = y.saturating_sub(r)..(y + r + 1).min(height);
-            for (x, spread) in row.iter_mut().enumerate() {
-                let columns = x.saturating_sub(r)..(x + r + 1).min(width);
-                let others = || {
-                    rows.clone()
-                        .flat_map(|yy| columns.clone().map(move |xx| (xx, yy)))
-                        .filter(|&p| p != (x, y))
-                        .map(|(xx, yy)| f64::from(luminance[yy * width + xx]))
-                };
-                let n = (rows.len() * columns.len() - 1) as f64;
-                if n < 2.0 {
-                    continue;
-                }
-                let mean = others().sum::<f64>() / n;
-                let variance = others().map(|v| (v - mean) * (v - mean)).sum::<f64>() / (n - 1.0);
-                *spread = variance.sqrt() as f32;
-            }
-        });
-    spread
-}
-
-/// Histogram bin of a spread: 0 for zero (or non-finite), else its log₂
-/// scaled by [`BINS_PER_OCTAVE`].
-fn spread_bin(spread: f32) -> u16 {
-    if spread > 0.0 && spread.is_finite() {
-        ((spread.log2() + LOG2_OFFSET) * BINS_PER_OCTAVE).clamp(1.0, (BINS - 1) as f32) as u16
-    } else {
-        0
+        Ok(Some(planes))
     }
 }
 
-/// The geometric centre of bin `b`'s spreads.
-fn bin_centre(b: usize) -> f64 {
-    ((b as f64 + 0.5) / f64::from(BINS_PER_OCTAVE) - f64::from(LOG2_OFFSET)).exp2()
+impl Film {
+    /// Sets up an empty film to hold only `passes` of the pixels in
+    /// `tile` (see the module documentation).
+    #[must_use]
+    pub fn for_part(mut self, passes: PassRange, tile: Tile) -> Self {
+        self.first_pass = passes.start;
+        self.row_passes.fill(passes.start);
+        let whole = Tile::whole(self.width, self.height);
+        self.region = (tile != whole).then_some(tile);
+        self
+    }
+
+    /// The film's state inside its tile, to be merged later.
+    pub fn part_data(&self, passes: PassRange) -> PartData {
+        let w = self.width as usize;
+        let tile = self
+            .region
+            .unwrap_or_else(|| Tile::whole(self.width, self.height));
+        let inside = |i: usize| tile.contains((i % w) as u32, (i / w) as u32);
+        let n = self.xyz_sum.len();
+        PartData {
+            passes,
+            tile,
+            sums: pick(&self.xyz_sum, inside),
+            weights: (0..n)
+                .map(|i| {
+                    if inside(i) {
+                        self.exact_pixel_weight(i)
+                    } else {
+                        ExactSum::ZERO
+                    }
+                })
+                .collect(),
+            splat_sums: pick(&self.splat_sum, inside),
+            splat_paths: self.splat_paths,
+            camera_discarded: self.discarded - self.splat_discarded,
+            splat_discarded: self.splat_discarded,
+        }
+    }
+
+    /// The film of the whole render from its parts: per pixel the sums and
+    /// weights of the parts that hold it, the splat sums likewise, and the
+    /// splat paths of one tile per pass range (each tile of a range ran
+    /// them all). With splats, a part of the first pass alone (the draft)
+    /// is left out when the render has more passes: the draft estimates
+    /// every order along the camera rays, which the splats add again.
+    /// `parts` must tile the image and the passes `0..spp` exactly
+    /// (`check_cover`).
+    pub fn from_parts(
+        width: u32,
+        height: u32,
+        spp: u32,
+        mirror: Option<Mirror>,
+        splats: bool,
+        parts: &[PartData],
+    ) -> Result<Self, std::collections::TryReserveError> {
+        let mut film = Self::try_new(width, height)?.with_mirror(mirror);
+        if splats {
+            film = film.try_with_splats()?;
+        }
+        film.row_passes.fill(spp);
+        let mut weights = try_filled(film.xyz_sum.len(), ExactSum::ZERO)?;
+        let mut counted_ranges = Vec::new();
+        let w = width as usize;
+        for part in parts {
+            let draft_only = splats && part.passes == PassRange { start: 0, end: 1 } && spp > 1;
+            for (i, weight) in weights.iter_mut().enumerate() {
+                if !part.tile.contains((i % w) as u32, (i / w) as u32) {
+                    continue;
+                }
+                if !draft_only {
+                    for c in 0..3 {
+                        film.xyz_sum[i][c] += part.sums[i][c];
+                    }
+                    *weight += part.weights[i];
+                }
+                if splats {
+                    for c in 0..3 {
+                        film.splat_sum[i][c] += part.splat_sums[i][c];
+                    }
+                }
+            }
+            film.discarded += part.camera_discarded;
+            if !counted_ranges.contains(&part.passes) {
+                counted_ranges.push(part.passes);
+                film.splat_paths += part.splat_paths;
+                film.discarded += part.splat_discarded;
+            }
+        }
+        film.pixel_weights = weights;
+        Ok(film)
+    }
 }
 
 #[cfg(test)]
 mod tests {
+    use super::super::adaptive::tests::hash01;
     use super::*;
 
     #[test]
@@ -593,7 +703,7 @@ mod tests {
         film.row_weights.fill(ExactSum::from_f64(0.5));
         // Two splatted paths put XYZ 4 into pixel 0 (mean 2 there).
         film.add_splats(
-            &[super::super::circles::Splat {
+            &[super::super::film_spectral::Splat {
                 pixel: 0,
                 xyz: [4.0; 3],
                 lanes: super::super::film_spectral::SplatLanes::default(),
@@ -628,87 +738,6 @@ mod tests {
         plain.row_passes.fill(2);
         plain.row_weights.fill(ExactSum::from_f64(1.5));
         assert_eq!(plain.xyz(0, 0), [1.0 / 1.5; 3]);
-    }
-
-    /// A deterministic pseudo-random value in [0, 1) per index.
-    fn hash01(i: usize) -> f32 {
-        let mut z = (i as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15) ^ 0xdead_beef;
-        z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-        z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-        (z >> 40) as f32 / (1u64 << 24) as f32
-    }
-
-    #[test]
-    fn a_flat_image_takes_one_sample_everywhere() {
-        assert!(plan(&[5.0; 12 * 10], 12, 10).iter().all(|&m| m == 1));
-        assert!(plan(&[0.0; 12 * 10], 12, 10).iter().all(|&m| m == 1));
-    }
-
-    #[test]
-    fn noisy_regions_get_more_samples_within_the_cap() {
-        // Three quarters faintly noisy (σ ≈ 0.3 about 100), the last quarter
-        // noisy (σ ≈ 29): the median spread is the faint one.
-        let (w, h) = (40, 20);
-        let image: Vec<f32> = (0..w * h)
-            .map(|i| {
-                let amplitude = if i % w < 3 * w / 4 { 1.0 } else { 100.0 };
-                100.0 + amplitude * (hash01(i) - 0.5)
-            })
-            .collect();
-        let m = plan(&image, w, h);
-        assert!(m.iter().all(|&v| (1..=MAX_SAMPLES_PER_PASS).contains(&v)));
-        let mean = |range: std::ops::Range<usize>| {
-            let px: Vec<f64> = (0..h)
-                .flat_map(|y| range.clone().map(move |x| y * w + x))
-                .map(|i| f64::from(m[i]))
-                .collect();
-            px.iter().sum::<f64>() / px.len() as f64
-        };
-        let (clean, noisy) = (
-            mean(0..3 * w / 4 - PLAN_RADIUS),
-            mean(3 * w / 4 + PLAN_RADIUS..w),
-        );
-        // About the median: PLAN_SCALE samples, rounded either way.
-        assert!(
-            (1.0..=PLAN_SCALE.ceil()).contains(&clean),
-            "faint part: {clean}"
-        );
-        assert!(
-            (noisy - f64::from(MAX_SAMPLES_PER_PASS)).abs() < 1e-12,
-            "noisy part: {noisy} samples per pass"
-        );
-    }
-
-    #[test]
-    fn a_pixels_plan_ignores_its_own_value() {
-        // The plan of pixel i must not depend on pixel i's samples (that is
-        // what keeps its mean unbiased): its own spread and those of the
-        // pixels outside its window — all the plan reads besides integer
-        // counts — stay bit for bit the same whatever its value, and so does
-        // its plan; its neighbours' plans may change.
-        let (w, h) = (30, 20);
-        let image: Vec<f32> = (0..w * h).map(|i| 50.0 + 30.0 * hash01(i)).collect();
-        let (spread, m) = (spreads(&image, w, h), plan(&image, w, h));
-        let r = PLAN_RADIUS;
-        for i in [0, 7 * w + 11, w * h - 1, 3 * w, 12 * w + 29] {
-            for v in [0.0, 1e6, 1e9, f32::MAX] {
-                let mut changed = image.clone();
-                changed[i] = v;
-                let after = spreads(&changed, w, h);
-                let far = |j: usize| (i % w).abs_diff(j % w) > r || (i / w).abs_diff(j / w) > r;
-                for j in (0..w * h).filter(|&j| j == i || far(j)) {
-                    assert_eq!(
-                        after[j].to_bits(),
-                        spread[j].to_bits(),
-                        "pixel {i} = {v}: σ of {j}"
-                    );
-                }
-                assert_eq!(plan(&changed, w, h)[i], m[i], "pixel {i} set to {v}");
-            }
-        }
-        let mut bright = image.clone();
-        bright[7 * w + 11] = 1e6;
-        assert_ne!(plan(&bright, w, h)[7 * w + 12], m[7 * w + 12]);
     }
 
     #[test]
@@ -843,91 +872,5 @@ mod tests {
             bright[7 * 30 + 15] = 1e6;
             assert_ne!(planned(&bright), m, "the plan reads the other pixels");
         }
-    }
-
-    #[test]
-    fn a_black_band_below_a_bright_one_stays_black() {
-        // Rows of zeros under noisy bright rows: their spreads must be
-        // exactly zero (not the rounding residue of sums that once held the
-        // bright rows), so they stay out of the median and the bright band,
-        // evenly noisy, does not take the cap everywhere.
-        let (w, h) = (30, 30);
-        let image: Vec<f32> = (0..w * h)
-            .map(|i| {
-                // Heavy-tailed (10⁴ to 10⁷): no f64 sum holds their squares exactly.
-                if i / w < 10 {
-                    1e4 / (hash01(i) + 1e-3)
-                } else {
-                    0.0
-                }
-            })
-            .collect();
-        let spread = spreads(&image, w, h);
-        assert!(spread[(10 + PLAN_RADIUS) * w..].iter().all(|&s| s == 0.0));
-        let m = plan(&image, w, h);
-        for y in 10 + PLAN_RADIUS..h {
-            assert!((0..w).all(|x| m[y * w + x] == 1), "row {y}");
-        }
-        let band = &m[..(10 - PLAN_RADIUS) * w];
-        let capped = band.iter().filter(|&&v| v >= MAX_SAMPLES_PER_PASS).count();
-        assert!(
-            capped < band.len() / 2,
-            "{capped} of {} at the cap",
-            band.len()
-        );
-    }
-
-    #[test]
-    fn window_sums_match_a_direct_computation() {
-        let (w, h) = (23, 17);
-        // Noise growing fourfold from left to right.
-        let image: Vec<f32> = (0..w * h)
-            .map(|i| 10.0 * (1.0 + 3.0 * (i % w) as f32 / w as f32) * hash01(i).powi(3))
-            .collect();
-        let r = PLAN_RADIUS as i64;
-        let window = |i: usize| {
-            let (x, y) = ((i % w) as i64, (i / w) as i64);
-            (-r..=r)
-                .flat_map(move |dy| (-r..=r).map(move |dx| (x + dx, y + dy)))
-                .filter(|&(xx, yy)| (0..w as i64).contains(&xx) && (0..h as i64).contains(&yy))
-                .map(|(xx, yy)| yy as usize * w + xx as usize)
-                .collect::<Vec<_>>()
-        };
-        let spread: Vec<f64> = (0..w * h)
-            .map(|i| {
-                let v: Vec<f64> = window(i)
-                    .into_iter()
-                    .filter(|&j| j != i)
-                    .map(|j| f64::from(image[j]))
-                    .collect();
-                let n = v.len() as f64;
-                let mean = v.iter().sum::<f64>() / n;
-                (v.iter().map(|a| (a - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt()
-            })
-            .collect();
-        let m = plan(&image, w, h);
-        let mut checked = 0;
-        for i in 0..w * h {
-            let near = window(i);
-            let mut far: Vec<u16> = (0..w * h)
-                .filter(|j| !near.contains(j))
-                .map(|j| spread_bin(spread[j] as f32))
-                .filter(|&b| b > 0)
-                .collect();
-            far.sort_unstable();
-            let median = bin_centre(usize::from(far[(far.len() - 1) / 2]));
-            let exact = PLAN_SCALE * spread[i] / median;
-            // Rounding ties may fall either way by floating-point error.
-            if (exact.fract() - 0.5).abs() > 1e-4 {
-                assert_eq!(
-                    f64::from(m[i]),
-                    exact.round().clamp(1.0, f64::from(MAX_SAMPLES_PER_PASS)),
-                    "pixel {i}"
-                );
-                checked += 1;
-            }
-        }
-        assert!(checked > w * h * 9 / 10);
-        assert!(m.iter().any(|&v| v > 1) && m.contains(&1));
     }
 }

@@ -25,8 +25,6 @@
 //! sun's, non-zero on a few pixels only, are kept per row as a short list.
 
 use super::exact::ExactSum;
-use super::film::{try_filled, Film};
-use crate::spectrum::xyz_to_rec709;
 
 /// The layers the film estimates from its paths, as named in
 /// [`crate::scene::OUTPUT_LAYERS`].
@@ -103,65 +101,12 @@ impl LayerSums {
     }
 
     /// The disc's sums at pixel `index` of a `width`-wide image.
-    fn sun_at(&self, index: usize, width: usize) -> [ExactSum; 3] {
+    pub(super) fn sun_at(&self, index: usize, width: usize) -> [ExactSum; 3] {
         let column = (index % width) as u32;
         self.sun[index / width]
             .iter()
             .find(|e| e.0 == column)
             .map_or([ExactSum::ZERO; 3], |e| e.1)
-    }
-}
-
-impl Film {
-    /// The film with the sums of the `sky`, `sun` and `ground` layers;
-    /// `centre_ground[i]`: whether the ray through pixel `i`'s centre
-    /// meets the ground.
-    pub(crate) fn try_with_layers(
-        mut self,
-        centre_ground: Vec<bool>,
-    ) -> Result<Self, std::collections::TryReserveError> {
-        let mut sun = Vec::new();
-        sun.try_reserve_exact(self.height as usize)?;
-        sun.resize(self.height as usize, Vec::new());
-        self.layers = Some(LayerSums {
-            ground: try_filled(self.xyz_sum.len(), [ExactSum::ZERO; 3])?,
-            sun,
-            centre_ground,
-        });
-        Ok(self)
-    }
-
-    /// The `sky`, `sun` and `ground` images (linear Rec.709, cd m⁻² for
-    /// Y, read as [`Film::xyz`] reads the beauty), row-major; `None`
-    /// without layer sums.
-    pub fn try_layer_images(
-        &self,
-    ) -> Result<Option<[Vec<[f32; 3]>; 3]>, std::collections::TryReserveError> {
-        let Some(layers) = &self.layers else {
-            return Ok(None);
-        };
-        let w = self.width as usize;
-        let n = self.xyz_sum.len();
-        let sun = |i: usize| layers.sun_at(i, w);
-        let ground = |i: usize| layers.ground[i];
-        let sky = |i: usize| {
-            let (s, g, d) = (self.xyz_sum[i], ground(i), sun(i));
-            [0, 1, 2].map(|c| s[c] - g[c] - d[c])
-        };
-        let in_ground = |i: usize| layers.centre_ground[i];
-        let in_sky = |i: usize| !layers.centre_ground[i];
-        let never = |_: usize| false;
-        let mut images = [Vec::new(), Vec::new(), Vec::new()];
-        for image in &mut images {
-            image.try_reserve_exact(n)?;
-        }
-        for i in 0..n {
-            let rgb = |xyz: [f64; 3]| xyz_to_rec709(xyz).map(|v| v as f32);
-            images[0].push(rgb(self.mean_with(i, &sky, &in_sky)));
-            images[1].push(rgb(self.mean_with(i, &sun, &never)));
-            images[2].push(rgb(self.mean_with(i, &ground, &in_ground)));
-        }
-        Ok(Some(images))
     }
 }
 
@@ -180,16 +125,16 @@ impl Film {
 #[derive(Clone, Debug)]
 pub(crate) struct VarianceSums {
     /// This pass's weighted camera luminance sums and weights.
-    pass_y: Vec<f64>,
-    pass_w: Vec<f64>,
+    pub(super) pass_y: Vec<f64>,
+    pub(super) pass_w: Vec<f64>,
     /// This pass's splats' luminance sums (empty without splats).
-    pass_splat_y: Vec<f32>,
+    pub(super) pass_splat_y: Vec<f32>,
     /// Σ Wₚ, Σ Wₚ eₚ and Σ Wₚ eₚ² per pixel.
-    sum_w: Vec<f64>,
-    sum_we: Vec<f64>,
-    sum_wee: Vec<f64>,
+    pub(super) sum_w: Vec<f64>,
+    pub(super) sum_we: Vec<f64>,
+    pub(super) sum_wee: Vec<f64>,
     /// Passes counted.
-    batches: u32,
+    pub(super) batches: u32,
 }
 
 /// One row's share of a pass's luminance sums, for the thread that
@@ -223,84 +168,5 @@ impl VarianceSums {
         if let Some(s) = self.pass_splat_y.get_mut(pixel) {
             *s += y as f32;
         }
-    }
-}
-
-impl Film {
-    /// The film with the sums of the `variance` layer.
-    pub(crate) fn try_with_variance(mut self) -> Result<Self, std::collections::TryReserveError> {
-        let n = self.xyz_sum.len();
-        self.variance = Some(VarianceSums {
-            pass_y: try_filled(n, 0.0)?,
-            pass_w: try_filled(n, 0.0)?,
-            pass_splat_y: if self.splats() {
-                try_filled(n, 0.0)?
-            } else {
-                Vec::new()
-            },
-            sum_w: try_filled(n, 0.0)?,
-            sum_we: try_filled(n, 0.0)?,
-            sum_wee: try_filled(n, 0.0)?,
-            batches: 0,
-        });
-        Ok(self)
-    }
-
-    /// Empties the pass sums before pass `pass`.
-    pub(crate) fn start_variance_pass(&mut self) {
-        if let Some(v) = &mut self.variance {
-            v.pass_y.fill(0.0);
-            v.pass_w.fill(0.0);
-            v.pass_splat_y.fill(0.0);
-        }
-    }
-
-    /// Counts the pass just rendered by every row (`pass`, with
-    /// `splat_paths` splat paths) as one batch; the draft pass is not one.
-    pub(crate) fn end_variance_pass(&mut self, pass: u32, splat_paths: u64) {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let mirror = self.mirror;
-        let Some(v) = self.variance.as_mut().filter(|_| pass >= 1) else {
-            return;
-        };
-        for i in 0..w * h {
-            let partner = mirror
-                .map(|m| m.partner(i % w, i / w, w, h))
-                .filter(|&p| p != i);
-            let pair = || std::iter::once(i).chain(partner);
-            let weight: f64 = pair().map(|p| v.pass_w[p]).sum();
-            if weight <= 0.0 {
-                continue;
-            }
-            let mut e = pair().map(|p| v.pass_y[p]).sum::<f64>() / weight;
-            if splat_paths > 0 && !v.pass_splat_y.is_empty() {
-                let n = pair().count() as f64;
-                let splats: f64 = pair().map(|p| f64::from(v.pass_splat_y[p])).sum();
-                e += splats / (n * splat_paths as f64);
-            }
-            v.sum_w[i] += weight;
-            v.sum_we[i] += weight * e;
-            v.sum_wee[i] += weight * e * e;
-        }
-        v.batches += 1;
-    }
-
-    /// The `variance.Y` plane: per pixel the estimated variance of its mean
-    /// luminance, (cd m⁻²)²; `None` without variance sums or before two
-    /// full passes.
-    pub fn variance_plane(&self) -> Option<Vec<f32>> {
-        let v = self.variance.as_ref().filter(|v| v.batches >= 2)?;
-        let p = f64::from(v.batches);
-        Some(
-            (0..self.xyz_sum.len())
-                .map(|i| {
-                    let (w, we, wee) = (v.sum_w[i], v.sum_we[i], v.sum_wee[i]);
-                    if w <= 0.0 {
-                        return 0.0;
-                    }
-                    ((wee - we * we / w).max(0.0) / ((p - 1.0) * w)) as f32
-                })
-                .collect(),
-        )
     }
 }

@@ -20,7 +20,7 @@
 //! wavelength samples). A 2048×1024 image in 47 bands holds 394 MB of f32
 //! sums per layer ([`spectral_bytes_per_pixel`]).
 
-use super::film::{try_filled, Film};
+use super::alloc::try_filled;
 use super::medium::LANES;
 
 /// The spectral image's first wavelength, nm.
@@ -146,7 +146,7 @@ impl SpectralFilm {
     }
 
     /// Adds one batch of splats.
-    pub(crate) fn add_splats(&mut self, splats: &[super::circles::Splat]) {
+    pub(crate) fn add_splats(&mut self, splats: &[Splat]) {
         if self.splat_sum.is_empty() {
             return;
         }
@@ -158,85 +158,17 @@ impl SpectralFilm {
     }
 }
 
-impl Film {
-    /// The film with a spectral layer of `bands` bands.
-    pub(crate) fn try_with_spectral(
-        mut self,
-        bands: u32,
-    ) -> Result<Self, std::collections::TryReserveError> {
-        self.spectral = Some(SpectralFilm::try_new(
-            self.width,
-            self.height,
-            bands,
-            self.splats(),
-        )?);
-        Ok(self)
-    }
-
-    /// The spectral image, one row-major plane per band (W m⁻² sr⁻¹ nm⁻¹,
-    /// band-averaged), normalised as [`Film::xyz`] normalises the XYZ sums;
-    /// `None` without a spectral layer.
-    pub fn try_spectral_planes(
-        &self,
-    ) -> Result<Option<Vec<Vec<f32>>>, std::collections::TryReserveError> {
-        let Some(spectral) = &self.spectral else {
-            return Ok(None);
-        };
-        let (w, h, bands) = (self.width as usize, self.height as usize, spectral.bands);
-        let mut planes = Vec::new();
-        planes.try_reserve_exact(bands)?;
-        for _ in 0..bands {
-            planes.push(try_filled(w * h, 0.0f32)?);
-        }
-        let camera = |i: usize| &spectral.rows[i / w][(i % w) * bands..(i % w + 1) * bands];
-        let mut mean = vec![0.0f64; bands];
-        for i in 0..w * h {
-            // The same reading as `Film::mean`: a pixel with its mirror
-            // partner; with splats, a row still on its draft alone, later
-            // rows the camera mean plus the splats'.
-            let partner = self
-                .mirror
-                .map(|m| m.partner(i % w, i / w, w, h))
-                .filter(|&p| p != i);
-            let full = |p: usize| self.row_passes[p / w] >= 2;
-            let (partner, splats) = if !self.splats() {
-                (partner, false)
-            } else if !full(i) {
-                (None, false)
-            } else {
-                (partner.filter(|&p| full(p)), self.splat_paths > 0)
-            };
-            let mut weight = self.pixel_weight(i);
-            for (m, &v) in mean.iter_mut().zip(camera(i)) {
-                *m = f64::from(v);
-            }
-            if let Some(p) = partner {
-                weight += self.pixel_weight(p);
-                for (m, &v) in mean.iter_mut().zip(camera(p)) {
-                    *m += f64::from(v);
-                }
-            }
-            if weight > 0.0 {
-                for m in &mut mean {
-                    *m /= weight;
-                }
-            }
-            if splats {
-                let n = if partner.is_some() { 2.0 } else { 1.0 };
-                let scale = 1.0 / (n * self.splat_paths as f64);
-                for p in std::iter::once(i).chain(partner) {
-                    let s = &spectral.splat_sum[p * bands..(p + 1) * bands];
-                    for (m, &v) in mean.iter_mut().zip(s) {
-                        *m += f64::from(v) * scale;
-                    }
-                }
-            }
-            for (plane, m) in planes.iter_mut().zip(&mean) {
-                plane[i] = *m as f32;
-            }
-        }
-        Ok(Some(planes))
-    }
+/// One path's contribution to one pixel.
+#[derive(Clone, Copy, Debug)]
+pub struct Splat {
+    /// Row-major pixel index.
+    pub pixel: u32,
+    /// XYZ (Y in cd m⁻²) times the number of paths it is averaged over.
+    pub xyz: [f64; 3],
+    /// The same light by wavelength lane, for a spectral film: the lanes'
+    /// radiance (W m⁻² sr⁻¹ nm⁻¹) times the splat's weight; the renderer
+    /// divides by the lanes' densities (the renderer's splat pass).
+    pub lanes: SplatLanes,
 }
 
 #[cfg(test)]

@@ -27,7 +27,7 @@
 //!
 //! Used through the options `sky_guide`, `shadow_samples`,
 //! `sunlight_samples` and `splitting` of [`super::IntegratorOptions`].
-//! `sunlight_samples` is on by default with the sun below [`super::integrator::LOW_SUN_ELEVATION_DEG`],
+//! `sunlight_samples` is on by default with the sun low (the regime table, [`crate::plan::regime`]),
 //! where its segment estimates, through this guide's cached densities, win
 //! at equal time (`BENCHMARKS.md`); `sky_guide` draws a quarter
 //! of the directions in the shadow from the table by default, 0.35 with the

@@ -1286,7 +1286,7 @@ impl<'a> Integrator<'a> {
     /// the tenth carries all the higher orders.
     fn force_collision(
         &self,
-        tracker: &mut super::medium::Tracker<'_>,
+        tracker: &mut super::tracker::Tracker<'_>,
         span: Span,
         depth: u32,
         beta: &mut Lanes,

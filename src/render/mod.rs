@@ -1,4 +1,4 @@
-//! Rendering: a [`Renderer`] turns a validated [`Scene`] into samples on a
+//! Rendering: a [`Renderer`] turns a validated [`crate::Scene`] into samples on a
 //! [`Film`], one pass at a time, in parallel over rows with rayon.
 //!
 //! Determinism: every pixel sample draws from its own generator seeded by
@@ -8,6 +8,8 @@
 //! ([`circles`]) each draw from a generator of their own, and their splats
 //! are added in the paths' order.
 
+pub mod adaptive;
+pub mod alloc;
 pub mod camera;
 pub mod circles;
 pub mod columns;
@@ -19,6 +21,7 @@ pub mod film_layers;
 pub mod film_spectral;
 pub mod guide;
 pub mod integrator;
+pub mod lanes;
 pub mod layers;
 pub mod medium;
 pub mod memory;
@@ -27,16 +30,18 @@ pub mod probe;
 pub mod renderer;
 pub mod service;
 pub mod splatting;
+pub mod sun_columns;
 pub mod sunlight;
+pub mod tracker;
+pub mod transmittance;
 pub mod trig;
 
 pub use crate::plan::{IntegratorOptions, Sampler, TechniquePlan};
-pub use camera::{direction_from_az_el, Camera};
-pub use film::{Film, Mirror, MirrorAxis};
+pub use camera::{direction_from_az_el, Camera, Mirror, MirrorAxis};
+pub use film::Film;
 pub use integrator::Integrator;
-pub use medium::{
-    LaneTable, Lanes, Medium, SolarSource, SpectralLanes, TransmittanceEstimator, LANES,
-};
+pub use lanes::{LaneTable, SolarSource};
+pub use medium::{Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 pub use memory::OutOfMemory;
 pub use probe::SpectralEstimate;
 pub use renderer::{mirror_pairs, solar_source, PassStats, Renderer, ADAPTIVE_FROM_PASS};

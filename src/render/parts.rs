@@ -27,7 +27,6 @@
 //!   statistically equivalent.
 
 use super::exact::ExactSum;
-use super::film::{try_filled, Film, Mirror};
 
 /// A rectangle of pixels: columns `x..x + width`, rows `y..y + height`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -202,102 +201,8 @@ pub struct PartData {
     pub splat_discarded: u64,
 }
 
-impl Film {
-    /// Sets up an empty film to hold only `passes` of the pixels in
-    /// `tile` (see the module documentation).
-    #[must_use]
-    pub fn for_part(mut self, passes: PassRange, tile: Tile) -> Self {
-        self.first_pass = passes.start;
-        self.row_passes.fill(passes.start);
-        let whole = Tile::whole(self.width, self.height);
-        self.region = (tile != whole).then_some(tile);
-        self
-    }
-
-    /// The film's state inside its tile, to be merged later.
-    pub fn part_data(&self, passes: PassRange) -> PartData {
-        let w = self.width as usize;
-        let tile = self
-            .region
-            .unwrap_or_else(|| Tile::whole(self.width, self.height));
-        let inside = |i: usize| tile.contains((i % w) as u32, (i / w) as u32);
-        let n = self.xyz_sum.len();
-        PartData {
-            passes,
-            tile,
-            sums: pick(&self.xyz_sum, inside),
-            weights: (0..n)
-                .map(|i| {
-                    if inside(i) {
-                        self.exact_pixel_weight(i)
-                    } else {
-                        ExactSum::ZERO
-                    }
-                })
-                .collect(),
-            splat_sums: pick(&self.splat_sum, inside),
-            splat_paths: self.splat_paths,
-            camera_discarded: self.discarded - self.splat_discarded,
-            splat_discarded: self.splat_discarded,
-        }
-    }
-
-    /// The film of the whole render from its parts: per pixel the sums and
-    /// weights of the parts that hold it, the splat sums likewise, and the
-    /// splat paths of one tile per pass range (each tile of a range ran
-    /// them all). With splats, a part of the first pass alone (the draft)
-    /// is left out when the render has more passes: the draft estimates
-    /// every order along the camera rays, which the splats add again.
-    /// `parts` must tile the image and the passes `0..spp` exactly
-    /// (`check_cover`).
-    pub fn from_parts(
-        width: u32,
-        height: u32,
-        spp: u32,
-        mirror: Option<Mirror>,
-        splats: bool,
-        parts: &[PartData],
-    ) -> Result<Self, std::collections::TryReserveError> {
-        let mut film = Self::try_new(width, height)?.with_mirror(mirror);
-        if splats {
-            film = film.try_with_splats()?;
-        }
-        film.row_passes.fill(spp);
-        let mut weights = try_filled(film.xyz_sum.len(), ExactSum::ZERO)?;
-        let mut counted_ranges = Vec::new();
-        let w = width as usize;
-        for part in parts {
-            let draft_only = splats && part.passes == PassRange { start: 0, end: 1 } && spp > 1;
-            for (i, weight) in weights.iter_mut().enumerate() {
-                if !part.tile.contains((i % w) as u32, (i / w) as u32) {
-                    continue;
-                }
-                if !draft_only {
-                    for c in 0..3 {
-                        film.xyz_sum[i][c] += part.sums[i][c];
-                    }
-                    *weight += part.weights[i];
-                }
-                if splats {
-                    for c in 0..3 {
-                        film.splat_sum[i][c] += part.splat_sums[i][c];
-                    }
-                }
-            }
-            film.discarded += part.camera_discarded;
-            if !counted_ranges.contains(&part.passes) {
-                counted_ranges.push(part.passes);
-                film.splat_paths += part.splat_paths;
-                film.discarded += part.splat_discarded;
-            }
-        }
-        film.pixel_weights = weights;
-        Ok(film)
-    }
-}
-
 /// `v` where `inside` holds, zero elsewhere.
-fn pick<T: Copy + Default>(v: &[[T; 3]], inside: impl Fn(usize) -> bool) -> Vec<[T; 3]> {
+pub(super) fn pick<T: Copy + Default>(v: &[[T; 3]], inside: impl Fn(usize) -> bool) -> Vec<[T; 3]> {
     (0..v.len())
         .map(|i| if inside(i) { v[i] } else { [T::default(); 3] })
         .collect()

@@ -20,10 +20,11 @@ pub fn solar_source(scene: &Scene) -> SolarSource {
         .with_limb_darkening(scene.sun.limb_darkening)
 }
 
-use super::camera::{direction_from_az_el, Camera};
-use super::film::{Film, Mirror, MirrorAxis};
+use super::camera::{direction_from_az_el, Camera, Mirror, MirrorAxis};
+use super::film::Film;
 use super::integrator::Integrator;
-use super::medium::{LaneTable, Lanes, Medium, SolarSource, SpectralLanes, LANES};
+use super::lanes::{LaneTable, SolarSource};
+use super::medium::{Lanes, Medium, SpectralLanes, LANES};
 use super::{circles, control, exact, film, film_layers, film_spectral, guide, sunlight};
 use crate::atmosphere::Atmosphere;
 use crate::plan::Conditions;

@@ -5,7 +5,8 @@
 
 use rayon::prelude::*;
 
-use super::circles::{CircleSplatter, Splat, SPLATS_PER_WALK};
+use super::circles::{CircleSplatter, SPLATS_PER_WALK};
+use super::film_spectral::Splat;
 use super::{Film, Integrator, Renderer, Sampler};
 use crate::rng::{mix64, Rng, SOBOL_POINTS};
 use crate::spectrum::K_M;
