@@ -116,6 +116,30 @@ fn toggling_aerosols_and_ozone_restarts_accumulation() {
 }
 
 #[test]
+fn choosing_a_ground_spectrum_restarts_accumulation() {
+    let mut harness = harness(tiny_app("midday"));
+    assert_restarts(&mut harness, "snow ground", |h| {
+        // The ground's menu: the combo box whose value is the albedo's.
+        h.get_by(|node| {
+            node.role() == Role::ComboBox && node.value().as_deref() == Some("uniform")
+        })
+        .click_accesskit();
+        h.run_steps(2);
+        h.get_by_label("snow").click_accesskit();
+    });
+    let atmosphere = &harness.state().state().scene().atmosphere;
+    assert_eq!(atmosphere.ground_albedo_spectrum.as_deref(), Some("snow"));
+    // The slider returns to one albedo at every wavelength.
+    assert_restarts(&mut harness, "albedo slider", |h| {
+        h.get_by_role_and_label(Role::Slider, "Ground albedo")
+            .set_value_accesskit(0.5);
+    });
+    let atmosphere = &harness.state().state().scene().atmosphere;
+    assert_eq!(atmosphere.ground_albedo_spectrum, None);
+    assert_eq!(atmosphere.ground_albedo, 0.5);
+}
+
+#[test]
 fn switching_camera_mode_restarts_and_arrow_keys_turn_the_view() {
     let mut harness = harness(tiny_app("midday"));
     assert_restarts(&mut harness, "fisheye", |h| {

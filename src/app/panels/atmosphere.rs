@@ -4,6 +4,10 @@
 use super::slider;
 use crate::app::state::{AppState, AEROSOL_AMOUNT_RANGE, OZONE_DU_RANGE};
 use crate::physics::planet::Planet;
+use crate::physics::spectrum_file::GROUND_SPECTRA;
+
+/// The ground spectrum menu's entry for the albedo slider's one number.
+const UNIFORM_GROUND: &str = "uniform";
 
 /// The Atmosphere section.
 pub struct AtmospherePanel<'a> {
@@ -95,17 +99,55 @@ impl AtmospherePanel<'_> {
                         }
                     });
                 });
-                if let Some(v) = slider(
-                    ui,
-                    a.ground_albedo,
-                    (0.0, 1.0),
-                    "Ground albedo",
-                    "",
-                    "Fraction of light the (Lambertian) ground reflects: \
-             0.1 forest or sea, 0.3 average, 0.8 snow",
-                ) {
-                    self.state.set_ground_albedo(v);
-                }
+                // The spectrum menu shares the albedo's row (the panel's
+                // height is spoken for, as above).
+                ui.horizontal(|ui| {
+                    if let Some(v) = slider(
+                        ui,
+                        a.ground_albedo,
+                        (0.0, 1.0),
+                        "Ground albedo",
+                        "",
+                        "Fraction of light the (Lambertian) ground reflects: \
+                         0.1 forest or sea, 0.3 average, 0.8 snow",
+                    ) {
+                        self.state.set_ground_albedo(v);
+                    }
+                    self.ground_spectrum(ui);
+                });
             });
+    }
+
+    /// The ground's albedo spectrum: the slider's one number at every
+    /// wavelength, or a measured spectrum (moving the slider returns to
+    /// the one number).
+    fn ground_spectrum(&mut self, ui: &mut egui::Ui) {
+        let current = self.state.scene().atmosphere.ground_albedo_spectrum.clone();
+        let shown = current.as_deref().unwrap_or(UNIFORM_GROUND);
+        egui::ComboBox::from_id_salt("ground spectrum")
+            .width(64.0)
+            .selected_text(shown)
+            .show_ui(ui, |ui| {
+                if ui
+                    .selectable_label(current.is_none(), UNIFORM_GROUND)
+                    .clicked()
+                {
+                    self.state.set_ground_spectrum(None);
+                }
+                for (name, _) in GROUND_SPECTRA {
+                    if ui
+                        .selectable_label(current.as_deref() == Some(name), name)
+                        .clicked()
+                    {
+                        self.state.set_ground_spectrum(Some(name));
+                    }
+                }
+            })
+            .response
+            .on_hover_text(
+                "The ground's reflectance over wavelength: the albedo above at every \
+                 wavelength, or a measured spectrum (USGS Spectral Library 7: green grass, \
+                 fine snow, beach sand, sea water; data/README.md)",
+            );
     }
 }
