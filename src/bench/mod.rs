@@ -28,27 +28,25 @@
 //! threads, and the peak memory of an 8192×4096 equirectangular export (a
 //! child process of this executable).
 
-use std::path::Path;
-use std::process::{Command, Stdio};
-use std::time::{Duration, Instant};
-
-use serde::Serialize;
+use std::time::Instant;
 
 use crate::render::Renderer;
 use crate::scene::{CameraKind, Scene};
 
 mod ablation;
+mod machine;
 mod noise;
 mod report;
 
 use ablation::selected_variants;
 pub use ablation::{ablation_variants, Variant};
-use noise::render_for;
+use machine::{cpu_model, measure_memory, measure_scaling, read_trimmed, thread_pool};
+pub use machine::{Machine, MemoryResult, ScalingResult};
 pub use noise::SUN_CONE_DEG;
 pub use noise::{
     measure_noise, process_cpu_seconds, relative_noise, sky_mask, time_to_noise, NoiseRun, SkyMask,
 };
-pub use report::format_report;
+pub use report::{format_report, AblationRow, Report, SceneDetail, SceneResult};
 
 /// Options of `skyrender bench`.
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -115,10 +113,6 @@ const DEFAULT_SEED: u64 = 0x5EED_000A;
 const TARGET_BUDGET_S: f64 = 10.0;
 const DEFAULT_BUDGET_S: f64 = 10.0;
 const QUICK_BUDGET_S: f64 = 0.4;
-const FIRST_FRAME_TARGET_MS: f64 = 100.0;
-const EFFICIENCY_TARGET: f64 = 0.85;
-const MEMORY_TARGET_GIB: f64 = 1.5;
-const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
 
 /// Relative-noise target at 10 s (issue #4), if the scene has one.
 pub fn noise_target(scene: &str) -> Option<f64> {
@@ -188,291 +182,6 @@ fn median(values: &mut [f64]) -> f64 {
     } else {
         0.5 * (values[n / 2 - 1] + values[n / 2])
     }
-}
-
-/// One row of the per-scene table; exactly the keys of the issue.
-#[derive(Clone, Debug, Serialize)]
-pub struct SceneResult {
-    pub scene: String,
-    pub paths_per_s: f64,
-    pub noise_at_budget: f64,
-    pub budget_s: f64,
-    pub time_to_2pct_s: f64,
-    pub time_to_1pct_s: f64,
-    pub first_frame_ms: f64,
-    pub threads: usize,
-    /// Relative noise over the ground, and over the whole image (sun cone
-    /// excluded), at the budget.
-    pub noise_ground_at_budget: f64,
-    pub noise_whole_at_budget: f64,
-    /// Time to 1 % noise over the whole image of a 4096×2048 render,
-    /// extrapolated: noise ∝ 1/√time, time ∝ pixels.
-    pub time_to_1pct_4k_s: f64,
-    /// The largest of the neighbour and circle correlations of the noise.
-    pub noise_neighbour_correlation: f64,
-    /// RMS error of the first pass against the reference (see
-    /// [`NoiseRun::first_frame_error`]).
-    pub first_frame_error: f64,
-}
-
-/// Everything else measured per scene.
-#[derive(Clone, Debug, Serialize)]
-pub struct SceneDetail {
-    pub scene: String,
-    pub width: u32,
-    pub height: u32,
-    pub camera: &'static str,
-    pub sun_elevation_deg: f64,
-    pub observer_altitude_m: f64,
-    pub sky_mask: SkyMask,
-    pub wavelengths_per_path: usize,
-    pub spectral_samples_per_s: f64,
-    pub run: NoiseRun,
-    pub first_frame_width: u32,
-    pub first_frame_height: u32,
-    pub first_frame_setup_ms: f64,
-    pub noise_target: Option<f64>,
-    /// Extrapolated time to the noise target, s.
-    pub time_to_target_s: Option<f64>,
-    /// Whether the target is reached within 10 s (extrapolated if the budget differs).
-    pub target_met: Option<bool>,
-}
-
-/// One ablation variant of one scene.
-#[derive(Clone, Debug, Serialize)]
-pub struct AblationRow {
-    pub scene: String,
-    pub variant: String,
-    pub noise_at_budget: f64,
-    /// Render time the variant actually took (more than the budget where one
-    /// pass each overran it), s.
-    pub seconds: f64,
-    /// Noise of the variant over noise of the full renderer at equal time:
-    /// sqrt(noise_v² t_v / (noise_full² t_full)), which is the plain ratio
-    /// of the noise at budget unless the variant overran the budget.
-    pub noise_ratio: f64,
-    /// Time the variant needs for the full renderer's noise, relative (= ratio²).
-    pub time_ratio: f64,
-    pub paths_per_s: f64,
-    /// Mean sky luminance of the variant over the full renderer's (≈ 1: unbiased).
-    pub mean_ratio: f64,
-    pub cpu_share: f64,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct ScalingResult {
-    pub scene: String,
-    pub threads: usize,
-    pub paths_per_s_1_thread: f64,
-    pub paths_per_s_all: f64,
-    pub speedup: f64,
-    pub efficiency: f64,
-    /// CPU time over (wall time × threads) in each configuration.
-    pub cpu_share_1_thread: f64,
-    pub cpu_share_all: f64,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct MemoryResult {
-    pub width: u32,
-    pub height: u32,
-    pub spp: u32,
-    pub peak_rss_bytes: u64,
-    pub peak_rss_gib: f64,
-    pub seconds: f64,
-    pub method: &'static str,
-    pub command: String,
-}
-
-#[derive(Clone, Debug, Serialize)]
-pub struct Machine {
-    pub cpus: usize,
-    pub model: String,
-    pub loadavg_before: String,
-    pub loadavg_after: String,
-}
-
-/// The whole report (`--json` prints it).
-#[derive(Clone, Debug, Serialize)]
-pub struct Report {
-    pub command: String,
-    /// A smoke run (`--quick`): budgets too small for the targets, so
-    /// none is judged (shown as "n/a", `target_met` null).
-    pub smoke: bool,
-    pub machine: Machine,
-    pub budget_s: f64,
-    pub threads: usize,
-    pub scenes: Vec<SceneResult>,
-    pub details: Vec<SceneDetail>,
-    pub ablation: Vec<AblationRow>,
-    pub scaling: Option<ScalingResult>,
-    pub memory: Option<MemoryResult>,
-    pub notes: Vec<String>,
-}
-
-fn read_trimmed(path: &str) -> String {
-    std::fs::read_to_string(path)
-        .map(|s| s.trim().to_owned())
-        .unwrap_or_default()
-}
-
-fn cpu_model() -> String {
-    read_trimmed("/proc/cpuinfo")
-        .lines()
-        .find(|l| l.starts_with("model name"))
-        .and_then(|l| l.split(':').nth(1))
-        .map_or_else(|| "unknown".to_owned(), |s| s.trim().to_owned())
-}
-
-fn thread_pool(threads: usize) -> Result<rayon::ThreadPool, String> {
-    rayon::ThreadPoolBuilder::new()
-        .num_threads(threads)
-        .build()
-        .map_err(|e| format!("bench: threads: {e}"))
-}
-
-/// Paths, seconds and CPU seconds of `scene` on `pool`, rendering whole
-/// passes for about `seconds`.
-fn throughput(
-    scene: &Scene,
-    pool: &rayon::ThreadPool,
-    seconds: f64,
-) -> Result<(u64, f64, f64), String> {
-    let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
-    Ok(pool.install(|| {
-        let r = render_for(&renderer, seconds);
-        (r.paths, r.seconds, r.cpu_seconds)
-    }))
-}
-
-/// Parallel efficiency from 1 to `threads` threads on midday, alternating
-/// 1, N, 1, N so that a change of machine load affects both alike.
-fn measure_scaling(threads: usize, budget_s: f64) -> Result<ScalingResult, String> {
-    let scene = bench_scene("midday")?;
-    let one = thread_pool(1)?;
-    let all = thread_pool(threads)?;
-    let slot = budget_s / 4.0;
-    let (mut p1, mut s1, mut c1, mut pn, mut sn, mut cn) = (0, 0.0, 0.0, 0, 0.0, 0.0);
-    for _ in 0..2 {
-        let (p, s, c) = throughput(&scene, &one, slot)?;
-        p1 += p;
-        s1 += s;
-        c1 += c;
-        let (p, s, c) = throughput(&scene, &all, slot)?;
-        pn += p;
-        sn += s;
-        cn += c;
-    }
-    let r1 = p1 as f64 / s1;
-    let rn = pn as f64 / sn;
-    Ok(ScalingResult {
-        scene: "midday".into(),
-        threads,
-        paths_per_s_1_thread: r1,
-        paths_per_s_all: rn,
-        speedup: rn / r1,
-        efficiency: rn / r1 / threads as f64,
-        cpu_share_1_thread: c1 / s1,
-        cpu_share_all: cn / (sn * threads as f64),
-    })
-}
-
-/// Peak resident memory of `skyrender render` writing a `width`×`height`
-/// equirect EXR at 1 spp, run as a child process of this executable:
-/// GNU time's maximum RSS (from wait4) where `/usr/bin/time` exists, else the
-/// child's VmHWM polled from /proc.
-fn measure_memory(threads: usize, width: u32, height: u32) -> Result<MemoryResult, String> {
-    let exe = std::env::current_exe().map_err(|e| format!("bench: memory: {e}"))?;
-    let dir = tempfile::tempdir().map_err(|e| format!("bench: memory: {e}"))?;
-    let output = dir.path().join("export.exr");
-    let render_args: Vec<String> = vec![
-        "render".into(),
-        "--preset".into(),
-        "midday".into(),
-        "--camera".into(),
-        "equirect".into(),
-        "--width".into(),
-        width.to_string(),
-        "--height".into(),
-        height.to_string(),
-        "--spp".into(),
-        "1".into(),
-        "--threads".into(),
-        threads.to_string(),
-        "-o".into(),
-        output.display().to_string(),
-    ];
-    let command = format!("skyrender {}", render_args.join(" "));
-    let gnu_time = Path::new("/usr/bin/time");
-    let start = Instant::now();
-    let (peak_kib, method) = if gnu_time.exists() {
-        let report = dir.path().join("time.txt");
-        let out = Command::new(gnu_time)
-            .arg("-f")
-            .arg("%M")
-            .arg("-o")
-            .arg(&report)
-            .arg(&exe)
-            .args(&render_args)
-            .stdin(Stdio::null())
-            .output()
-            .map_err(|e| format!("bench: memory: cannot run {}: {e}", gnu_time.display()))?;
-        if !out.status.success() {
-            return Err(format!(
-                "bench: memory: export failed: {}",
-                String::from_utf8_lossy(&out.stderr).trim()
-            ));
-        }
-        let text = std::fs::read_to_string(&report).map_err(|e| format!("bench: memory: {e}"))?;
-        let kib = text
-            .lines()
-            .filter_map(|l| l.trim().parse::<u64>().ok())
-            .next_back()
-            .ok_or_else(|| format!("bench: memory: cannot parse '{}'", text.trim()))?;
-        (kib, "max RSS of the child (GNU time, wait4 rusage)")
-    } else {
-        let mut child = Command::new(&exe)
-            .args(&render_args)
-            .stdin(Stdio::null())
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .map_err(|e| format!("bench: memory: {e}"))?;
-        let status_path = format!("/proc/{}/status", child.id());
-        let mut peak = 0u64;
-        let status = loop {
-            if let Some(kib) = read_trimmed(&status_path)
-                .lines()
-                .find_map(|l| l.strip_prefix("VmHWM:"))
-                .and_then(|v| v.trim().trim_end_matches("kB").trim().parse::<u64>().ok())
-            {
-                peak = peak.max(kib);
-            }
-            if let Some(status) = child.try_wait().map_err(|e| e.to_string())? {
-                break status;
-            }
-            std::thread::sleep(Duration::from_millis(5));
-        };
-        if !status.success() {
-            return Err(format!("bench: memory: export failed ({status})"));
-        }
-        (
-            peak,
-            "VmHWM of the child polled every 5 ms (may miss a final peak)",
-        )
-    };
-    let seconds = start.elapsed().as_secs_f64();
-    let bytes = peak_kib * 1024;
-    Ok(MemoryResult {
-        width,
-        height,
-        spp: 1,
-        peak_rss_bytes: bytes,
-        peak_rss_gib: bytes as f64 / GIB,
-        seconds,
-        method,
-        command,
-    })
 }
 
 /// Run the benchmark and gather the report (progress on stderr).
@@ -618,7 +327,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
     }
     let scaling = if args.scaling {
         eprintln!("bench: scaling 1 → {threads} thread(s)");
-        Some(measure_scaling(threads, budget_s)?)
+        Some(measure_scaling(&bench_scene("midday")?, threads, budget_s)?)
     } else {
         None
     };

@@ -1,6 +1,103 @@
 //! `skyrender bench`'s report as Markdown tables.
 
-use super::{Report, EFFICIENCY_TARGET, FIRST_FRAME_TARGET_MS, MEMORY_TARGET_GIB};
+use serde::Serialize;
+
+use super::machine::{Machine, MemoryResult, ScalingResult};
+use super::noise::{NoiseRun, SkyMask};
+
+/// The preview's first frame, ms: the target the report judges.
+pub(super) const FIRST_FRAME_TARGET_MS: f64 = 100.0;
+/// Parallel efficiency from one thread to all: the target.
+pub(super) const EFFICIENCY_TARGET: f64 = 0.85;
+/// Peak memory of the measured render (`--memory`), GiB: the target.
+pub(super) const MEMORY_TARGET_GIB: f64 = 1.5;
+
+/// One row of the per-scene table; exactly the keys of the issue.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneResult {
+    pub scene: String,
+    pub paths_per_s: f64,
+    pub noise_at_budget: f64,
+    pub budget_s: f64,
+    pub time_to_2pct_s: f64,
+    pub time_to_1pct_s: f64,
+    pub first_frame_ms: f64,
+    pub threads: usize,
+    /// Relative noise over the ground, and over the whole image (sun cone
+    /// excluded), at the budget.
+    pub noise_ground_at_budget: f64,
+    pub noise_whole_at_budget: f64,
+    /// Time to 1 % noise over the whole image of a 4096×2048 render,
+    /// extrapolated: noise ∝ 1/√time, time ∝ pixels.
+    pub time_to_1pct_4k_s: f64,
+    /// The largest of the neighbour and circle correlations of the noise.
+    pub noise_neighbour_correlation: f64,
+    /// RMS error of the first pass against the reference (see
+    /// [`NoiseRun::first_frame_error`]).
+    pub first_frame_error: f64,
+}
+
+/// Everything else measured per scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct SceneDetail {
+    pub scene: String,
+    pub width: u32,
+    pub height: u32,
+    pub camera: &'static str,
+    pub sun_elevation_deg: f64,
+    pub observer_altitude_m: f64,
+    pub sky_mask: SkyMask,
+    pub wavelengths_per_path: usize,
+    pub spectral_samples_per_s: f64,
+    pub run: NoiseRun,
+    pub first_frame_width: u32,
+    pub first_frame_height: u32,
+    pub first_frame_setup_ms: f64,
+    pub noise_target: Option<f64>,
+    /// Extrapolated time to the noise target, s.
+    pub time_to_target_s: Option<f64>,
+    /// Whether the target is reached within 10 s (extrapolated if the budget differs).
+    pub target_met: Option<bool>,
+}
+
+/// One ablation variant of one scene.
+#[derive(Clone, Debug, Serialize)]
+pub struct AblationRow {
+    pub scene: String,
+    pub variant: String,
+    pub noise_at_budget: f64,
+    /// Render time the variant actually took (more than the budget where one
+    /// pass each overran it), s.
+    pub seconds: f64,
+    /// Noise of the variant over noise of the full renderer at equal time:
+    /// sqrt(noise_v² t_v / (noise_full² t_full)), which is the plain ratio
+    /// of the noise at budget unless the variant overran the budget.
+    pub noise_ratio: f64,
+    /// Time the variant needs for the full renderer's noise, relative (= ratio²).
+    pub time_ratio: f64,
+    pub paths_per_s: f64,
+    /// Mean sky luminance of the variant over the full renderer's (≈ 1: unbiased).
+    pub mean_ratio: f64,
+    pub cpu_share: f64,
+}
+
+/// The whole report (`--json` prints it).
+#[derive(Clone, Debug, Serialize)]
+pub struct Report {
+    pub command: String,
+    /// A smoke run (`--quick`): budgets too small for the targets, so
+    /// none is judged (shown as "n/a", `target_met` null).
+    pub smoke: bool,
+    pub machine: Machine,
+    pub budget_s: f64,
+    pub threads: usize,
+    pub scenes: Vec<SceneResult>,
+    pub details: Vec<SceneDetail>,
+    pub ablation: Vec<AblationRow>,
+    pub scaling: Option<ScalingResult>,
+    pub memory: Option<MemoryResult>,
+    pub notes: Vec<String>,
+}
 
 fn pct(v: f64) -> String {
     if v.is_finite() {

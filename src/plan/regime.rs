@@ -109,10 +109,10 @@ pub struct RegimeDefaults {
     pub circle_splatting: bool,
     /// The first (draft) pass's weight in the film's average. Weights ∝
     /// 1/variance minimise the mean's, and the draft's plain delta-tracked
-    /// camera paths carry far more variance per path than a full pass's
-    /// (6–16× by day, 23–49× at sunset, 58–147× at twilight): any fixed
-    /// positive weight keeps the mean unbiased and lets the draft alone
-    /// show a first image.
+    /// camera paths carry far more variance per path than a full pass's,
+    /// the more so the lower the sun (`BENCHMARKS.md`): any fixed positive
+    /// weight keeps the mean unbiased and lets the draft alone show a first
+    /// image.
     pub draft_weight: f64,
 }
 

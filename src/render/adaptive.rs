@@ -6,10 +6,9 @@
 
 use rayon::prelude::*;
 
-/// Most samples per pass a planned pixel takes. 16 rather than 8 since the
-/// mirror pairs: with a plan scale of 1.25, 0.92× the variance
-/// per CPU second at twilight (fixed passes, two seed pairs; 0.91× per path
-/// over four), 0.99× at sunset and midday (`BENCHMARKS.md`).
+/// Most samples per pass a planned pixel takes: with mirror pairs a pair
+/// reads twice the samples, and a cap of 8 held back the pairs that need
+/// the most (the decisions table of `BENCHMARKS.md`).
 pub const MAX_SAMPLES_PER_PASS: u8 = 16;
 /// Half-width of the neighbourhood whose spread plans a pixel's samples,
 /// pixels (a 9×9 window without its centre).

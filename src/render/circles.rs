@@ -64,33 +64,13 @@ use super::integrator::Integrator;
 use super::medium::{Medium, SpectralLanes, LANES};
 use crate::rng::Rng;
 
-/// Positions along a circle per point. With two directions per point
-/// (fixed passes, twilight and sunset, noise² × CPU time against 32, the
-/// CPU times ±10 %): 24: 1.3×, 48: 0.67–0.83×, 64:
-/// 0.70–0.73×, 96: 0.62–0.72× — a broad optimum: the phase-drawn
-/// positions follow the light the paths found, and the paths cost more
-/// than the positions.
-pub const SPLATS_PER_WALK: usize = 64;
-/// Directions (each with its path) per point, shared by its positions.
-/// About half a twilight walk's variance was its path's (four paths along
-/// one direction: 0.54× the splats' variance). Two directions against one,
-/// fixed passes: variance 0.69× at twilight, 0.72× at sunset
-/// for 1.27× and 1.2× the CPU time (noise² × time 0.86–0.88×); three:
-/// no better than two.
+pub use super::circle_geometry::SPLATS_PER_WALK;
+use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS};
+
+/// Directions (each with its path) per point, shared by its positions:
+/// about half a twilight walk's variance is its path's, and a second
+/// direction pays for its path where a third does not (`BENCHMARKS.md`).
 const DIRECTIONS_PER_WALK: usize = 2;
-/// Of them, drawn before the path's direction: from the Cauchy density
-/// about the observer's nearest point, and uniformly.
-const CAUCHY_SPLATS: usize = 4;
-const UNIFORM_SPLATS: usize = 4;
-const FIRST_SPLATS: usize = CAUCHY_SPLATS + UNIFORM_SPLATS;
-/// The rest, drawn after it: from the Cauchy density times the phase
-/// function toward the observer at each position ([`PhaseCells`]).
-const PHASE_SPLATS: usize = SPLATS_PER_WALK - FIRST_SPLATS;
-/// Cells of the phase-weighted density, uniform in the Cauchy quantile.
-const PHASE_CELLS: usize = 32;
-/// Share of the phase-weighted density spread evenly over its cells (a
-/// floor under the phase function's shape).
-const PHASE_FLOOR: f64 = 0.1;
 /// Share of the points drawn from the table (the rest: analytic in ρ).
 const TABLE_SHARE: f64 = 0.8;
 /// The analytic density in ρ: shares and scales (m) of two exponentials,
@@ -100,9 +80,8 @@ const RHO_SCALES_M: [f64; 2] = [5e3, 30e3];
 /// Share of the points drawn from the density learned from the pass's
 /// predecessors' splats ([`LearnedPoints`]), once there are any; the rest
 /// from the prior (table and analytic parts), which keeps the density
-/// positive wherever the prior is. Cross-validated offline on the splats
-/// of one twilight render against another's: 0.25, 0.5,
-/// 0.75 left 0.84×, 0.75×, 0.70× the splats' variance.
+/// positive wherever the prior is (chosen by cross-validating the splats
+/// of one twilight render against another's, `BENCHMARKS.md`).
 const LEARNED_SHARE: f64 = 0.75;
 /// Table bins per learned cell along each axis: the learned density is the
 /// prior's times one factor per cell of 4 × 4 bins (16 × 16 cells; 8 × 8
@@ -128,226 +107,6 @@ const TABLE_WAVELENGTH_NM: f64 = 550.0;
 const TABLE_MIN_COS: f64 = 0.05;
 
 pub use super::film_spectral::Splat;
-
-/// The frame of the scene's symmetry: the sun's axis through the Earth's
-/// centre, and the observer's place about it.
-#[derive(Clone, Copy, Debug)]
-struct SunAxis {
-    observer_m: DVec3,
-    sun: DVec3,
-    /// Unit vectors normal to the axis; the observer lies at ψ = 0.
-    e1: DVec3,
-    e2: DVec3,
-    /// The observer's radius and angle from the sun's direction.
-    r0_m: f64,
-    theta0: f64,
-    ground_m: f64,
-    top_m: f64,
-}
-
-impl SunAxis {
-    /// `None` with the sun at the observer's zenith or nadir, where every
-    /// circle through the observer's neighbourhood degenerates.
-    fn new(observer_m: DVec3, sun: DVec3, ground_m: f64, top_m: f64) -> Option<Self> {
-        let r0_m = observer_m.length();
-        let up = observer_m / r0_m;
-        let normal = up - up.dot(sun) * sun;
-        if normal.length() < 1e-9 {
-            return None;
-        }
-        let e1 = normal.normalize();
-        Some(Self {
-            observer_m,
-            sun,
-            e1,
-            e2: sun.cross(e1),
-            r0_m,
-            theta0: up.dot(sun).clamp(-1.0, 1.0).acos(),
-            ground_m,
-            top_m,
-        })
-    }
-
-    fn point(&self, r_m: f64, theta: f64, psi: f64) -> DVec3 {
-        let (sin_psi, cos_psi) = psi.sin_cos();
-        r_m * (theta.sin() * (cos_psi * self.e1 + sin_psi * self.e2) + theta.cos() * self.sun)
-    }
-
-    /// `v` turned by `psi` about the axis.
-    fn rotate(&self, v: DVec3, psi: f64) -> DVec3 {
-        let (a, b) = (v.dot(self.e1), v.dot(self.e2));
-        let (sin_psi, cos_psi) = psi.sin_cos();
-        (a * cos_psi - b * sin_psi) * self.e1
-            + (a * sin_psi + b * cos_psi) * self.e2
-            + v.dot(self.sun) * self.sun
-    }
-
-    /// Largest angle at the Earth's centre between the observer and a
-    /// point of radius `r_m` that the ground does not hide.
-    fn horizon_angle(&self, r_m: f64) -> f64 {
-        (self.ground_m / self.r0_m).min(1.0).acos() + (self.ground_m / r_m).min(1.0).acos()
-    }
-
-    /// Half the visible arc (|ψ| ≤ it) of the circle (r, θ): the points
-    /// within [`Self::horizon_angle`] of the observer. 0: none.
-    fn half_arc(&self, r_m: f64, theta: f64) -> f64 {
-        let sines = self.theta0.sin() * theta.sin();
-        if sines <= 0.0 {
-            return 0.0;
-        }
-        let cos_min = (self.horizon_angle(r_m).cos() - self.theta0.cos() * theta.cos()) / sines;
-        if cos_min >= 1.0 {
-            0.0
-        } else if cos_min <= -1.0 {
-            PI
-        } else {
-            cos_min.acos()
-        }
-    }
-
-    /// (r, θ) at polar (ρ, φ) about the observer in the plane
-    /// (r − r₀, r₀ (θ − θ₀)); area there is r₀ dr dθ.
-    fn at_polar(&self, rho_m: f64, phi: f64) -> (f64, f64) {
-        let (sin_phi, cos_phi) = phi.sin_cos();
-        (
-            self.r0_m + rho_m * sin_phi,
-            self.theta0 + rho_m * cos_phi / self.r0_m,
-        )
-    }
-
-    /// The farthest visible circle's ρ.
-    fn rho_max(&self) -> f64 {
-        let dr = (self.top_m - self.r0_m)
-            .abs()
-            .max((self.r0_m - self.ground_m).abs());
-        let dx = self.r0_m * self.horizon_angle(self.top_m);
-        dr.hypot(dx)
-    }
-}
-
-/// Where the circle (r, θ) passes the observer: the scale a of the
-/// Cauchy density a / (a² + ψ²) that follows 1/t² along it.
-fn cauchy_scale(axis: &SunAxis, r_m: f64, theta: f64) -> f64 {
-    // Floored far below any pixel's footprint, only to keep the scale
-    // positive (a floor near the observer's scale would leave the 1/t²
-    // peak of the nearest circles unfollowed: fireflies).
-    let nearest = (axis.point(r_m, theta, 0.0) - axis.observer_m)
-        .length()
-        .max(1e-6);
-    // t² = d² + 2 r r₀ sin θ sin θ₀ (1 − cos ψ) ≈ d² + r r₀ sin θ sin θ₀ ψ².
-    let curvature = r_m * axis.r0_m * theta.sin() * axis.theta0.sin();
-    nearest / curvature.max(1.0).sqrt()
-}
-
-/// The visible arc |ψ| ≤ `half` of one circle and the Cauchy density
-/// a / (a² + ψ²) on it (normalised to the arc).
-#[derive(Clone, Copy, Debug)]
-struct Arc {
-    half: f64,
-    scale: f64,
-    atan_half: f64,
-}
-
-impl Arc {
-    fn new(half: f64, scale: f64) -> Self {
-        Self {
-            half,
-            scale,
-            atan_half: (half / scale).atan(),
-        }
-    }
-
-    /// ψ at quantile `v` of the Cauchy density.
-    fn cauchy(&self, v: f64) -> f64 {
-        self.scale * (self.atan_half * (2.0 * v - 1.0)).tan()
-    }
-
-    /// The Cauchy density's quantile of `psi`.
-    fn quantile(&self, psi: f64) -> f64 {
-        (0.5 * (1.0 + (psi / self.scale).atan() / self.atan_half)).clamp(0.0, 1.0)
-    }
-
-    fn cauchy_density(&self, psi: f64) -> f64 {
-        self.scale / (self.scale * self.scale + psi * psi) / (2.0 * self.atan_half)
-    }
-
-    /// The positions drawn before the path's direction, stratified by `u`:
-    /// [`CAUCHY_SPLATS`] Cauchy, then [`UNIFORM_SPLATS`] uniform.
-    fn first_positions(&self, u: f64) -> [f64; FIRST_SPLATS] {
-        std::array::from_fn(|k| {
-            if k < CAUCHY_SPLATS {
-                self.cauchy((k as f64 + u) / CAUCHY_SPLATS as f64)
-            } else {
-                let v = ((k - CAUCHY_SPLATS) as f64 + u) / UNIFORM_SPLATS as f64;
-                self.half * (2.0 * v - 1.0)
-            }
-        })
-    }
-
-    /// The positions' combined density at `psi` (balance heuristic over the
-    /// three kinds of draws, multi-sample MIS: the estimate of a sum over
-    /// positions divides each term by it).
-    fn density(&self, psi: f64, cells: &PhaseCells) -> f64 {
-        let cauchy = self.cauchy_density(psi);
-        CAUCHY_SPLATS as f64 * cauchy
-            + UNIFORM_SPLATS as f64 / (2.0 * self.half)
-            + PHASE_SPLATS as f64 * cells.density(self, psi, cauchy)
-    }
-}
-
-/// The phase-weighted density on an arc: the Cauchy density times weights
-/// constant over [`PHASE_CELLS`] cells uniform in its quantile — the phase
-/// function toward the observer at each cell's centre, given the path's
-/// direction, with a [`PHASE_FLOOR`]. An aerosol's forward peak seen by one
-/// position of many is then drawn where it is: with the direction's density
-/// alone (one mixture over all positions) that position's splat carried up
-/// to K times the others' weight, and those splats were most of the
-/// twilight sky's variance (`BENCHMARKS.md`).
-struct PhaseCells {
-    /// Probability of each cell.
-    probabilities: [f64; PHASE_CELLS],
-}
-
-impl PhaseCells {
-    /// From the (non-negative) phase function at each cell's centre.
-    fn new(weights: [f64; PHASE_CELLS]) -> Self {
-        let total: f64 = weights.iter().sum();
-        let even = 1.0 / PHASE_CELLS as f64;
-        let probabilities = if total > 0.0 && total.is_finite() {
-            weights.map(|w| (1.0 - PHASE_FLOOR) * w / total + PHASE_FLOOR * even)
-        } else {
-            [even; PHASE_CELLS]
-        };
-        Self { probabilities }
-    }
-
-    /// The quantile of each cell's centre.
-    fn centre(m: usize) -> f64 {
-        (m as f64 + 0.5) / PHASE_CELLS as f64
-    }
-
-    /// Density at `psi` on `arc`, given the Cauchy density `cauchy` there.
-    fn density(&self, arc: &Arc, psi: f64, cauchy: f64) -> f64 {
-        let m = ((arc.quantile(psi) * PHASE_CELLS as f64) as usize).min(PHASE_CELLS - 1);
-        self.probabilities[m] * PHASE_CELLS as f64 * cauchy
-    }
-
-    /// [`PHASE_SPLATS`] positions, stratified by `u` over the cells'
-    /// cumulative probabilities.
-    fn positions(&self, arc: &Arc, u: f64) -> [f64; PHASE_SPLATS] {
-        let mut m = 0;
-        let mut below = 0.0;
-        std::array::from_fn(|k| {
-            let v = (k as f64 + u) / PHASE_SPLATS as f64;
-            while m + 1 < PHASE_CELLS && below + self.probabilities[m] <= v {
-                below += self.probabilities[m];
-                m += 1;
-            }
-            let within = ((v - below) / self.probabilities[m]).clamp(0.0, 1.0);
-            arc.cauchy((m as f64 + within) / PHASE_CELLS as f64)
-        })
-    }
-}
 
 /// Density (per ρ, per φ-turn) of the analytic part.
 fn analytic_rho_density(rho_m: f64, rho_max: f64) -> f64 {
@@ -862,6 +621,7 @@ impl CircleSplatter {
 mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
+    use crate::render::circle_geometry::{PHASE_CELLS, PHASE_FLOOR, PHASE_SPLATS};
     use crate::render::direction_from_az_el;
     use crate::render::guide::SkyGuide;
 

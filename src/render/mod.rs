@@ -11,6 +11,7 @@
 pub mod adaptive;
 pub mod alloc;
 pub mod camera;
+pub mod circle_geometry;
 pub mod circles;
 pub mod columns;
 pub mod control;

@@ -264,9 +264,8 @@ impl Renderer {
     /// is reflected across the mirror's axis, which makes its points the
     /// physical reflection of the ones it would have had in the lower pixel
     /// (so the pixel-position coordinates stay stratified over the pair).
-    /// Each pixel's samples stay uniform, so its mean stays unbiased. At
-    /// fixed passes over four seed pairs, 0.96× the variance at sunset,
-    /// 0.93× at midday, 0.99× at twilight (`BENCHMARKS.md`).
+    /// Each pixel's samples stay uniform, so its mean stays unbiased
+    /// (`BENCHMARKS.md`, mirror pairs).
     pub(super) fn sequence_slot(&self, x: u32, y: u32) -> SequenceSlot {
         let (width, height) = (self.scene.render.width, self.scene.render.height);
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);

@@ -14,18 +14,14 @@ use crate::spectrum::K_M;
 /// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
 pub(crate) const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
 /// Points splatted per pixel in each pass after the first ([`circles`];
-/// each with two directions and paths). At twilight, in the bench (256×128, 10 s,
-/// one path per point): 1: 7.74 %, 2: 7.07–7.82 %, 3:
-/// 6.55–7.43 % (five runs), 4: 7.19 %: with more, the camera's own
-/// samples (single scattering, the ground) get too few passes. With two
-/// paths per point, 2 and 3 give the same noise² × time (fixed passes,
-/// twilight and sunset): 2, for shorter passes.
+/// each with two directions and paths): with more, the camera's own
+/// samples (single scattering, the ground) get too few passes; 2 and 3
+/// measured alike, and 2 makes shorter passes (`BENCHMARKS.md`).
 const SPLAT_PATHS_PER_PIXEL: u64 = 2;
 /// Points per pixel of the first splatting pass (pass 1), the only one that
 /// draws them from the prior alone ([`circles::LearnedPoints`]): half as
-/// many, so the learned density takes over sooner. Twilight, draft + 2
-/// passes, seeds 1/3/5/7: noise² × CPU time 0.91×; draft +
-/// 3 passes against draft + 3 with 2 in the first: 0.89×.
+/// many, so the learned density takes over sooner (`BENCHMARKS.md`,
+/// learned splat density).
 const FIRST_SPLAT_PATHS_PER_PIXEL: u64 = 1;
 
 /// Points splatted per pixel in pass `pass` (≥ 1).

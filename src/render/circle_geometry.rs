@@ -1,0 +1,245 @@
+//! The geometry of splatting along circles of symmetry ([`super::circles`]):
+//! the frame of the sun's axis, the arcs of a circle the camera sees, and
+//! where along an arc a path's splats go.
+
+use std::f64::consts::PI;
+
+use glam::DVec3;
+
+/// Positions along a circle per point, in a broad optimum between 48 and
+/// 96 (`BENCHMARKS.md`): the phase-drawn positions follow the light the
+/// paths found, and the paths cost more than the positions.
+pub const SPLATS_PER_WALK: usize = 64;
+/// Of them, drawn before the path's direction: from the Cauchy density
+/// about the observer's nearest point, and uniformly.
+pub(super) const CAUCHY_SPLATS: usize = 4;
+pub(super) const UNIFORM_SPLATS: usize = 4;
+pub(super) const FIRST_SPLATS: usize = CAUCHY_SPLATS + UNIFORM_SPLATS;
+/// The rest, drawn after it: from the Cauchy density times the phase
+/// function toward the observer at each position ([`PhaseCells`]).
+pub(super) const PHASE_SPLATS: usize = SPLATS_PER_WALK - FIRST_SPLATS;
+/// Cells of the phase-weighted density, uniform in the Cauchy quantile.
+pub(super) const PHASE_CELLS: usize = 32;
+/// Share of the phase-weighted density spread evenly over its cells (a
+/// floor under the phase function's shape).
+pub(super) const PHASE_FLOOR: f64 = 0.1;
+
+/// The frame of the scene's symmetry: the sun's axis through the Earth's
+/// centre, and the observer's place about it.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct SunAxis {
+    pub(super) observer_m: DVec3,
+    pub(super) sun: DVec3,
+    /// Unit vectors normal to the axis; the observer lies at ψ = 0.
+    pub(super) e1: DVec3,
+    pub(super) e2: DVec3,
+    /// The observer's radius and angle from the sun's direction.
+    pub(super) r0_m: f64,
+    pub(super) theta0: f64,
+    pub(super) ground_m: f64,
+    pub(super) top_m: f64,
+}
+
+impl SunAxis {
+    /// `None` with the sun at the observer's zenith or nadir, where every
+    /// circle through the observer's neighbourhood degenerates.
+    pub(super) fn new(observer_m: DVec3, sun: DVec3, ground_m: f64, top_m: f64) -> Option<Self> {
+        let r0_m = observer_m.length();
+        let up = observer_m / r0_m;
+        let normal = up - up.dot(sun) * sun;
+        if normal.length() < 1e-9 {
+            return None;
+        }
+        let e1 = normal.normalize();
+        Some(Self {
+            observer_m,
+            sun,
+            e1,
+            e2: sun.cross(e1),
+            r0_m,
+            theta0: up.dot(sun).clamp(-1.0, 1.0).acos(),
+            ground_m,
+            top_m,
+        })
+    }
+
+    pub(super) fn point(&self, r_m: f64, theta: f64, psi: f64) -> DVec3 {
+        let (sin_psi, cos_psi) = psi.sin_cos();
+        r_m * (theta.sin() * (cos_psi * self.e1 + sin_psi * self.e2) + theta.cos() * self.sun)
+    }
+
+    /// `v` turned by `psi` about the axis.
+    pub(super) fn rotate(&self, v: DVec3, psi: f64) -> DVec3 {
+        let (a, b) = (v.dot(self.e1), v.dot(self.e2));
+        let (sin_psi, cos_psi) = psi.sin_cos();
+        (a * cos_psi - b * sin_psi) * self.e1
+            + (a * sin_psi + b * cos_psi) * self.e2
+            + v.dot(self.sun) * self.sun
+    }
+
+    /// Largest angle at the Earth's centre between the observer and a
+    /// point of radius `r_m` that the ground does not hide.
+    pub(super) fn horizon_angle(&self, r_m: f64) -> f64 {
+        (self.ground_m / self.r0_m).min(1.0).acos() + (self.ground_m / r_m).min(1.0).acos()
+    }
+
+    /// Half the visible arc (|ψ| ≤ it) of the circle (r, θ): the points
+    /// within [`Self::horizon_angle`] of the observer. 0: none.
+    pub(super) fn half_arc(&self, r_m: f64, theta: f64) -> f64 {
+        let sines = self.theta0.sin() * theta.sin();
+        if sines <= 0.0 {
+            return 0.0;
+        }
+        let cos_min = (self.horizon_angle(r_m).cos() - self.theta0.cos() * theta.cos()) / sines;
+        if cos_min >= 1.0 {
+            0.0
+        } else if cos_min <= -1.0 {
+            PI
+        } else {
+            cos_min.acos()
+        }
+    }
+
+    /// (r, θ) at polar (ρ, φ) about the observer in the plane
+    /// (r − r₀, r₀ (θ − θ₀)); area there is r₀ dr dθ.
+    pub(super) fn at_polar(&self, rho_m: f64, phi: f64) -> (f64, f64) {
+        let (sin_phi, cos_phi) = phi.sin_cos();
+        (
+            self.r0_m + rho_m * sin_phi,
+            self.theta0 + rho_m * cos_phi / self.r0_m,
+        )
+    }
+
+    /// The farthest visible circle's ρ.
+    pub(super) fn rho_max(&self) -> f64 {
+        let dr = (self.top_m - self.r0_m)
+            .abs()
+            .max((self.r0_m - self.ground_m).abs());
+        let dx = self.r0_m * self.horizon_angle(self.top_m);
+        dr.hypot(dx)
+    }
+}
+
+/// Where the circle (r, θ) passes the observer: the scale a of the
+/// Cauchy density a / (a² + ψ²) that follows 1/t² along it.
+pub(super) fn cauchy_scale(axis: &SunAxis, r_m: f64, theta: f64) -> f64 {
+    // Floored far below any pixel's footprint, only to keep the scale
+    // positive (a floor near the observer's scale would leave the 1/t²
+    // peak of the nearest circles unfollowed: fireflies).
+    let nearest = (axis.point(r_m, theta, 0.0) - axis.observer_m)
+        .length()
+        .max(1e-6);
+    // t² = d² + 2 r r₀ sin θ sin θ₀ (1 − cos ψ) ≈ d² + r r₀ sin θ sin θ₀ ψ².
+    let curvature = r_m * axis.r0_m * theta.sin() * axis.theta0.sin();
+    nearest / curvature.max(1.0).sqrt()
+}
+
+/// The visible arc |ψ| ≤ `half` of one circle and the Cauchy density
+/// a / (a² + ψ²) on it (normalised to the arc).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct Arc {
+    pub(super) half: f64,
+    pub(super) scale: f64,
+    pub(super) atan_half: f64,
+}
+
+impl Arc {
+    pub(super) fn new(half: f64, scale: f64) -> Self {
+        Self {
+            half,
+            scale,
+            atan_half: (half / scale).atan(),
+        }
+    }
+
+    /// ψ at quantile `v` of the Cauchy density.
+    pub(super) fn cauchy(&self, v: f64) -> f64 {
+        self.scale * (self.atan_half * (2.0 * v - 1.0)).tan()
+    }
+
+    /// The Cauchy density's quantile of `psi`.
+    pub(super) fn quantile(&self, psi: f64) -> f64 {
+        (0.5 * (1.0 + (psi / self.scale).atan() / self.atan_half)).clamp(0.0, 1.0)
+    }
+
+    pub(super) fn cauchy_density(&self, psi: f64) -> f64 {
+        self.scale / (self.scale * self.scale + psi * psi) / (2.0 * self.atan_half)
+    }
+
+    /// The positions drawn before the path's direction, stratified by `u`:
+    /// [`CAUCHY_SPLATS`] Cauchy, then [`UNIFORM_SPLATS`] uniform.
+    pub(super) fn first_positions(&self, u: f64) -> [f64; FIRST_SPLATS] {
+        std::array::from_fn(|k| {
+            if k < CAUCHY_SPLATS {
+                self.cauchy((k as f64 + u) / CAUCHY_SPLATS as f64)
+            } else {
+                let v = ((k - CAUCHY_SPLATS) as f64 + u) / UNIFORM_SPLATS as f64;
+                self.half * (2.0 * v - 1.0)
+            }
+        })
+    }
+
+    /// The positions' combined density at `psi` (balance heuristic over the
+    /// three kinds of draws, multi-sample MIS: the estimate of a sum over
+    /// positions divides each term by it).
+    pub(super) fn density(&self, psi: f64, cells: &PhaseCells) -> f64 {
+        let cauchy = self.cauchy_density(psi);
+        CAUCHY_SPLATS as f64 * cauchy
+            + UNIFORM_SPLATS as f64 / (2.0 * self.half)
+            + PHASE_SPLATS as f64 * cells.density(self, psi, cauchy)
+    }
+}
+
+/// The phase-weighted density on an arc: the Cauchy density times weights
+/// constant over [`PHASE_CELLS`] cells uniform in its quantile — the phase
+/// function toward the observer at each cell's centre, given the path's
+/// direction, with a [`PHASE_FLOOR`]. An aerosol's forward peak seen by one
+/// position of many is then drawn where it is: with the direction's density
+/// alone (one mixture over all positions) that position's splat carried up
+/// to K times the others' weight, and those splats were most of the
+/// twilight sky's variance (`BENCHMARKS.md`).
+pub(super) struct PhaseCells {
+    /// Probability of each cell.
+    pub(super) probabilities: [f64; PHASE_CELLS],
+}
+
+impl PhaseCells {
+    /// From the (non-negative) phase function at each cell's centre.
+    pub(super) fn new(weights: [f64; PHASE_CELLS]) -> Self {
+        let total: f64 = weights.iter().sum();
+        let even = 1.0 / PHASE_CELLS as f64;
+        let probabilities = if total > 0.0 && total.is_finite() {
+            weights.map(|w| (1.0 - PHASE_FLOOR) * w / total + PHASE_FLOOR * even)
+        } else {
+            [even; PHASE_CELLS]
+        };
+        Self { probabilities }
+    }
+
+    /// The quantile of each cell's centre.
+    pub(super) fn centre(m: usize) -> f64 {
+        (m as f64 + 0.5) / PHASE_CELLS as f64
+    }
+
+    /// Density at `psi` on `arc`, given the Cauchy density `cauchy` there.
+    pub(super) fn density(&self, arc: &Arc, psi: f64, cauchy: f64) -> f64 {
+        let m = ((arc.quantile(psi) * PHASE_CELLS as f64) as usize).min(PHASE_CELLS - 1);
+        self.probabilities[m] * PHASE_CELLS as f64 * cauchy
+    }
+
+    /// [`PHASE_SPLATS`] positions, stratified by `u` over the cells'
+    /// cumulative probabilities.
+    pub(super) fn positions(&self, arc: &Arc, u: f64) -> [f64; PHASE_SPLATS] {
+        let mut m = 0;
+        let mut below = 0.0;
+        std::array::from_fn(|k| {
+            let v = (k as f64 + u) / PHASE_SPLATS as f64;
+            while m + 1 < PHASE_CELLS && below + self.probabilities[m] <= v {
+                below += self.probabilities[m];
+                m += 1;
+            }
+            let within = ((v - below) / self.probabilities[m]).clamp(0.0, 1.0);
+            arc.cauchy((m as f64 + within) / PHASE_CELLS as f64)
+        })
+    }
+}

@@ -1,0 +1,931 @@
+//! The spectral path tracer: one camera path per call, several wavelengths
+//! per path.
+//!
+//! **Camera rays** (with a [`CameraDensities`] table and `camera_samples` >
+//! 0, the default): the segment from the observer is estimated through
+//! in-scattering points drawn from the expected sunlight along it, tabulated
+//! once per render by view direction. Each point gets a next-event estimate
+//! toward the sun (single scattering: rel. std 0.2–1 per path where delta
+//! tracking's is 1–20, `BENCHMARKS.md`), and the path then *branches*:
+//! `camera_branches` continuations, each from its own point drawn from the
+//! skylight part of the density (or from the ground), weighted 1/N. Every
+//! camera path thus carries the multiply scattered light, which holds most
+//! of the variance, and the camera segment's cost is shared by N estimates
+//! of it. Scattering there is forced, not sampled, so a branch starts with
+//! the weight ≈ the chance that light scatters at all; roulette plays on the
+//! weight relative to that start.
+//!
+//! **Estimator.** Along every other segment a majorant process proposes
+//! tentative collisions (delta tracking over shell-wise majorants; see
+//! [`super::medium`]). At each tentative collision at distance t the
+//! null-collision form of the radiative transfer equation,
+//! L(x) = ∫ T̄(t) [σ_s L_s + σ_n L] dt + T̄ L_background (Galtier et al. 2013),
+//! is estimated by
+//! * next-event estimation toward the solar disc, weighted by σ_s/σ̄, at
+//!   *every* tentative collision (the collision estimator for direct light),
+//! * then a random choice between a real scattering event (probability P_s)
+//!   and a null collision (1 − P_s), each weighted by its coefficient over
+//!   σ̄ and its probability.
+//!
+//! Absorption never terminates a path; it only weights it. Russian roulette
+//! ends paths without bias. On the branches of camera paths the first
+//! tentative collision is forced into the segment where the ray would
+//! otherwise leave the atmosphere ([`crate::plan::IntegratorOptions::forced_collision_depth`]):
+//! an escaping path adds nothing there, so conditioning on not escaping and
+//! weighting by its probability turns a rare large contribution into a
+//! frequent small one.
+//!
+//! **Scattering directions** mix the phase function about the path's
+//! direction with the phase function about the sun's (`sun_lobe`; see
+//! `Integrator::sample_scatter_direction`).
+//!
+//! Which of the techniques below are on, and how strongly, is the
+//! [`TechniquePlan`]'s choice ([`crate::plan`], by the sun's regime); the
+//! integrator reads the plan as it is.
+//!
+//! **Segment estimates at low sun.** With the sun low, `sunlight_samples`
+//! estimates every segment like the camera ray's, from the [`SkyGuide`]'s
+//! cached densities of rays from points of the same altitude and solar
+//! zenith (without a guide, from a density built per segment,
+//! [`super::sunlight`]), the path going on from its first real scattering:
+//! at sunset and twilight most light reaches a path from thin sunlit
+//! stretches of long rays, which chance collisions rarely hit. Higher up
+//! the sun, delta tracking wins at equal time.
+//!
+//! **In the planet's shadow** a share of the scattering directions
+//! (`sky_guide`) come from the table
+//! of incoming once-scattered light ([`super::guide`]): there the light
+//! comes from the sunlit air above the horizon, which no phase function
+//! about a fixed axis finds. With the sun low, sunlit points are guided
+//! too (`sky_guide_sunlit`).
+//!
+//! **Roulette and splitting by importance** (`splitting`, at twilight): at a real scattering of a low-sun
+//! path, the path's expected light is its weight times the guide's mean
+//! once-scattered radiance at the point ([`SkyGuide::skylight`]); relative
+//! to that at the path's start it decides roulette (below a quarter) or how
+//! many copies go on (at most 4 at a vertex, 256 from one start), each with
+//! its own direction (Vorba and Křivánek 2016, adjoint-driven Russian
+//! roulette and splitting, with the guide's table as the adjoint).
+//! At twilight most of the variance lies in orders ≥ 3 (90 % of it for 32 %
+//! of the light, `BENCHMARKS.md`): paths wandering in the shadow that rarely
+//! reach the brighter air high up or toward the sun, and there carry large
+//! weights.
+//!
+//! **The once-scattered light as a control variate** (`control_variate`, at
+//! sunset, unless the haze is too thick or too peaked for its table,
+//! [`crate::plan::control_table_holds`]): at
+//! every real scattering the exact phase-function integral of a tabulated
+//! approximation A of the once-scattered light arriving there is added,
+//! and the path going on estimates only L − A ([`super::control`]). At
+//! sunset the aureole, cut by the bright horizon, gives the light a point
+//! sees a sharp structure that the sampled directions find unevenly; taken
+//! out, it leaves less variance (`BENCHMARKS.md`).
+//!
+//! **Multiply scattered light splatted along circles of symmetry**
+//! (`circle_splatting`, with the sun low): the camera's
+//! paths keep only their next-event points (more per ray than without:
+//! single scattering's variance is per point) and ground branches, and the
+//! film gets the light scattered again in the air from paths started
+//! anywhere in the visible air, each added to the pixels along its point's
+//! circle about the sun's axis ([`super::circles`],
+//! `Integrator::splat_walk`).
+//!
+//! **Alternative kept as an option** (not faster at equal time on the
+//! benchmark scenes; see `BENCHMARKS.md`): `shadow_samples` estimates only
+//! the segments that start in the planet's shadow through points drawn
+//! from their expected sunlight.
+//!
+//! **Wavelengths.** Lanes carry hero-rotated wavelengths (Wilkie et al. 2014).
+//! Every random decision (real vs. null, phase-function component and angle)
+//! samples the *average* of the lanes' distributions, and each lane is
+//! weighted by its own density over that average (a one-sample mixture / MIS
+//! with the balance heuristic per decision), so every lane stays unbiased and
+//! weights are bounded by the lane count.
+
+mod camera_ray;
+mod control_variate;
+mod ground;
+mod scatter_directions;
+mod segments;
+mod sun_disc;
+
+use std::f64::consts::PI;
+
+use glam::DVec3;
+
+use super::columns::FixedStart;
+use super::control::{CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX, NODES};
+use super::directions::orthonormal_basis;
+use super::guide::{GuideAt, SkyGuide};
+use super::medium::Span;
+use super::medium::{Bounds, Lanes, Medium, SpectralLanes, LANES};
+use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDistribution};
+use super::trig::sin_cos_turns;
+use crate::physics::{rayleigh, sun};
+use crate::plan::{TechniquePlan, MAX_BRANCHES, MAX_FORCED_COLLISION_DEPTH, MAX_SUNLIGHT_SAMPLES};
+use crate::rng::Rng;
+
+/// σ_s,R P_R + σ_s,A P_A of lane `j` at cosine `mu`, given the aerosol's
+/// phase function there (the same for every lane).
+fn lane_scattering_phase(
+    c: &super::medium::Coefficients,
+    lanes: &SpectralLanes,
+    j: usize,
+    mu: f64,
+    aerosol_phase: f64,
+) -> f64 {
+    c.rayleigh[j] * rayleigh::phase(mu, lanes.rayleigh_gamma[j])
+        + c.aerosol_scattering[j] * aerosol_phase
+}
+
+/// Uniforms a scattering direction draws ([`Integrator::sample_scatter_direction`]
+/// without a guide: the lobe, the lane, the component, μ and φ).
+const DIRECTION_UNIFORMS: usize = 5;
+
+/// Radiance estimate per lane (W m⁻² sr⁻¹ nm⁻¹, or per unit irradiance).
+pub type Radiance = Lanes;
+
+/// A path's light per lane as it is gathered: the total, and the part of
+/// it that is the sun's disc seen straight along the camera ray (the `sun`
+/// layer, [`super::film_layers`]). Reads and writes as its total.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Light {
+    /// All the light.
+    pub total: Radiance,
+    /// The sun's disc through the air along the camera ray, not scattered.
+    pub disc: Radiance,
+}
+
+impl std::ops::Deref for Light {
+    type Target = Radiance;
+
+    fn deref(&self) -> &Radiance {
+        &self.total
+    }
+}
+
+impl std::ops::DerefMut for Light {
+    fn deref_mut(&mut self) -> &mut Radiance {
+        &mut self.total
+    }
+}
+
+/// Scattering vertices become paths longer than this only through Russian
+/// roulette with survival ≤ 0.9, so paths end with probability one.
+const ROULETTE_CAP_DEPTH: u32 = MAX_FORCED_COLLISION_DEPTH;
+/// Russian roulette leaves a path alone until its weight, relative to where
+/// it started, falls below this; survivors carry this weight. At 1
+/// (roulette on any loss) a ground bounce of albedo 0.3 killed 70 % of the
+/// paths and tripled the weight of the rest, which cost noise in every
+/// scene (`BENCHMARKS.md`, Russian roulette).
+const ROULETTE_WEIGHT: f64 = 0.25;
+/// Paths expected to bring more than this, relative to their start, split.
+const SPLIT_WEIGHT: f64 = 2.0;
+/// Most copies of one path at one vertex.
+const MAX_SPLIT: usize = 4;
+/// Most copies one path start may become through splitting (the product of
+/// the copies made along any copy's line). Without it, a thick haze below
+/// the sunlit air, whose importance grows by orders of magnitude from the
+/// ground up, split each start into ~20 000 copies (aerosol amount 100 at
+/// −4°: up to 60 000 vertices per camera path against 13 in the preset);
+/// in the twilight preset it binds for about 1 camera path in 100, and the
+/// noise is unchanged (`BENCHMARKS.md`).
+const MAX_COPIES: usize = 256;
+
+/// Zenith × azimuth strata of the directions a control cell is projected
+/// from.
+const CONTROL_DIRECTIONS: (usize, usize) = (32, 16);
+/// Seed of the control cells' own random numbers.
+const CONTROL_SEED: u64 = 0xc047_a01e;
+
+/// Where a path stands in roulette and splitting by importance
+/// ([`Integrator::weight_window`]).
+#[derive(Clone, Copy, Debug)]
+struct Window {
+    /// Expected light at the path's start (or where a cap last lifted it),
+    /// per unit weight.
+    reference: f64,
+    /// The product of the copy counts along this path's line since its
+    /// start — the inverse of its share of the start's weight — at most
+    /// [`MAX_COPIES`].
+    copies: usize,
+}
+
+/// Where a path starts: position, direction, scatterings so far, and the
+/// scale of its weight for roulette (see [`survives_roulette`]).
+type Start = (DVec3, DVec3, u32, f64);
+/// Where a path goes on: position, direction, weight.
+type Vertex = (DVec3, DVec3, Lanes);
+/// Where a path goes on from a segment.
+#[derive(Clone, Copy)]
+enum Next<'t> {
+    /// A vertex with its new direction chosen.
+    Vertex(Vertex),
+    /// A real scattering at a point of a path along a direction, weighted
+    /// up to the choice of its new direction ([`Integrator::scatter`]).
+    /// With the control variate on, its expansions at the point.
+    Scatter(DVec3, DVec3, Lanes, Option<ControlAt<'t>>),
+}
+/// The vertices a segment branches into.
+type Branches = [Option<Vertex>; MAX_BRANCHES];
+/// Ground vertices sit this far above the surface, m.
+const SURFACE_OFFSET_M: f64 = 1e-3;
+
+/// Everything the integrator needs about one scene.
+pub struct Integrator<'a> {
+    pub medium: &'a Medium,
+    pub plan: &'a TechniquePlan,
+    pub sun_direction: DVec3,
+    cos_sun_radius: f64,
+    sun_solid_angle_sr: f64,
+    sun_frame: (DVec3, DVec3),
+    bounds: Bounds,
+    camera: Option<&'a CameraDensities>,
+    guide: Option<&'a SkyGuide>,
+    control: Option<&'a RadianceTable>,
+    /// Camera rays branch only from the ground: the light scattered more
+    /// than once in the air reaches the film through [`super::circles`].
+    splatting: bool,
+    /// The aerosol phase function's Legendre moments k_0..k_L.
+    aerosol_moments: [f64; L_MAX + 1],
+}
+
+/// The control variate at one scattering point: the point's frame and the
+/// expansions drawn for its lanes ([`RadianceTable::pick`]).
+#[derive(Clone, Copy)]
+struct ControlAt<'t> {
+    frame: Frame,
+    picked: Picked<'t, LANES>,
+}
+
+impl ControlAt<'_> {
+    /// Subtracts beta × A(dir): the path going on along `dir` from this
+    /// point with weight `beta` now estimates L − A.
+    fn subtract(&self, lanes: &SpectralLanes, dir: DVec3, beta: &Lanes, radiance: &mut Lanes) {
+        let a = self.picked.evaluate(&self.frame.basis(dir));
+        for j in 0..LANES {
+            radiance[j] -= beta[j] * lanes.sun_irradiance[j] * a[j];
+        }
+    }
+}
+
+/// A density of in-scattering distances along one path segment.
+trait SegmentDensity {
+    /// A distance from `component` for the uniform variate `u` ∈ [0, 1) and
+    /// its density, m⁻¹.
+    fn sample(&self, component: Component, u: f64) -> (f64, f64);
+    /// Expected shares of the light found by going on from the medium and
+    /// from the ground (only their ratio matters).
+    fn shares(&self, ground_albedo: f64) -> (f64, f64);
+}
+
+impl SegmentDensity for InScatterDistribution {
+    fn sample(&self, component: Component, u: f64) -> (f64, f64) {
+        InScatterDistribution::sample(self, component, u)
+    }
+    fn shares(&self, ground_albedo: f64) -> (f64, f64) {
+        InScatterDistribution::shares(self, ground_albedo)
+    }
+}
+
+impl SegmentDensity for CachedRayDensity<'_> {
+    fn sample(&self, component: Component, u: f64) -> (f64, f64) {
+        CachedRayDensity::sample(self, component, u)
+    }
+    fn shares(&self, ground_albedo: f64) -> (f64, f64) {
+        CachedRayDensity::shares(self, ground_albedo)
+    }
+}
+
+impl<'a> Integrator<'a> {
+    pub fn new(medium: &'a Medium, plan: &'a TechniquePlan, sun_direction: DVec3) -> Self {
+        Self {
+            medium,
+            plan,
+            sun_direction,
+            cos_sun_radius: sun::ANGULAR_RADIUS_DEG.to_radians().cos(),
+            sun_solid_angle_sr: sun::solid_angle_sr(),
+            sun_frame: orthonormal_basis(sun_direction),
+            bounds: if plan.segments.tight_majorants {
+                Bounds::Tight
+            } else {
+                Bounds::Global
+            },
+            camera: None,
+            guide: None,
+            control: None,
+            splatting: false,
+            aerosol_moments: medium.aerosol_phase.legendre_moments(),
+        }
+    }
+
+    /// Uses `table` as the diffuse light's control variate where the
+    /// options turn it on ([`crate::plan::IntegratorOptions::control_variate`]; never
+    /// with `max_scattering_order`, whose orders it would mix).
+    #[must_use]
+    pub fn with_control(mut self, table: &'a RadianceTable) -> Self {
+        if self.plan.control_variate {
+            self.control = Some(table);
+        }
+        self
+    }
+
+    /// Whether single estimates may be negative (with the control variate
+    /// on: its mean is not); otherwise a negative one is a defect.
+    pub fn signed_estimates(&self) -> bool {
+        self.control.is_some()
+    }
+
+    /// Camera rays no longer branch from the air (only from the ground):
+    /// the film gets that light from [`super::circles`] instead.
+    #[must_use]
+    pub(crate) fn with_circle_splatting(mut self) -> Self {
+        self.splatting = true;
+        self
+    }
+
+    /// Uses `guide` for scattering directions (see
+    /// [`crate::plan::IntegratorOptions::sky_guide`]) and for the distance densities of
+    /// `Self::trace_sunlit`'s segments.
+    #[must_use]
+    pub fn with_sky_guide(mut self, guide: &'a SkyGuide) -> Self {
+        self.guide = Some(guide);
+        self
+    }
+
+    /// Uses `camera` for rays that start at its observer (see
+    /// [`crate::plan::IntegratorOptions::camera_samples`]).
+    #[must_use]
+    pub fn with_camera_densities(mut self, camera: &'a CameraDensities) -> Self {
+        self.camera = Some(camera);
+        self
+    }
+
+    /// Phase function of lane `j` times σ_s (i.e. σ_s,R P_R + σ_s,A P_A), per sr.
+    pub(crate) fn scattering_phase(
+        &self,
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        j: usize,
+        mu: f64,
+    ) -> f64 {
+        let aerosol = self.medium.aerosol_phase.eval(mu);
+        lane_scattering_phase(c, lanes, j, mu, aerosol)
+    }
+
+    /// [`Self::scattering_phase`] of every lane (the aerosol's phase
+    /// function, the same for all, evaluated once); inactive lanes 0.
+    pub(crate) fn scattering_phases(
+        &self,
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        mu: f64,
+    ) -> Lanes {
+        let aerosol = self.medium.aerosol_phase.eval(mu);
+        std::array::from_fn(|j| {
+            if j < lanes.active {
+                lane_scattering_phase(c, lanes, j, mu, aerosol)
+            } else {
+                0.0
+            }
+        })
+    }
+
+    /// Radiance arriving at `origin` from direction `-dir` (i.e. looking along `dir`).
+    pub fn radiance(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Radiance {
+        self.light(origin, dir, lanes, rng).total
+    }
+
+    /// [`Self::radiance`] with the part of it that is the sun's disc seen
+    /// straight along `dir` (through the air, not scattered), from the
+    /// same path.
+    pub fn light(&self, origin: DVec3, dir: DVec3, lanes: &SpectralLanes, rng: &mut Rng) -> Light {
+        let mut radiance = Light::default();
+        let opts = self.plan;
+        let camera = self
+            .camera
+            .filter(|c| opts.camera.samples > 0 && c.origin_m() == origin);
+        match camera {
+            Some(camera) if opts.segments.next_event_estimation => {
+                let branches = self.camera_segment(camera, dir, lanes, &mut radiance, rng);
+                // A branch's weight is the chance that light scattered there
+                // at all (forced, not sampled) over the branch count, which
+                // roulette must not read as a dim path: it plays on the
+                // weight relative to the branch's start.
+                for (x, new_dir, beta) in branches.into_iter().flatten() {
+                    let start = beta[..lanes.active].iter().copied().fold(0.0, f64::max);
+                    let scale = if start > 0.0 { 1.0 / start } else { 1.0 };
+                    let from = (x, new_dir, 1, scale);
+                    if opts.segments.sunlight_samples > 0 {
+                        self.trace_sunlit(from, beta, lanes, &mut radiance, rng);
+                    } else {
+                        self.trace(from, beta, lanes, &mut radiance, rng);
+                    }
+                }
+            }
+            _ if opts.segments.sunlight_samples > 0 && opts.segments.next_event_estimation => {
+                let from = (origin, dir, 0, 1.0);
+                self.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, rng);
+            }
+            _ => self.trace(
+                (origin, dir, 0, 1.0),
+                [1.0; LANES],
+                lanes,
+                &mut radiance,
+                rng,
+            ),
+        }
+        radiance
+    }
+
+    /// One walk of [`super::circles`]: the light arriving at `x` along a
+    /// direction drawn here, estimated by a path that starts at `x` after
+    /// one scattering (so the sun's disc itself is never added). The
+    /// direction's density mixes the guide's table and the sun lobe, as at
+    /// any scattering, with the phase function about *each* of
+    /// `camera_dirs` in equal shares instead of about one incoming
+    /// direction: the walk serves a camera ray along every one of them.
+    /// Returns the direction, its density (sr⁻¹) and the radiance estimate,
+    /// or `None` for an empty `camera_dirs`.
+    pub(crate) fn splat_walk(
+        &self,
+        x: DVec3,
+        camera_dirs: &[DVec3],
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<(DVec3, f64, Radiance)> {
+        if camera_dirs.is_empty() {
+            return None;
+        }
+        let opts = self.plan;
+        let at = self.direction_guide(x);
+        let guides = at.as_ref().is_some_and(GuideAt::guides);
+        let g = if guides {
+            opts.directions.sky_guide
+        } else {
+            0.0
+        };
+        let alpha = opts.directions.sun_lobe;
+        let dir = match at.as_ref() {
+            Some(guide) if guides && rng.uniform() < g => guide.sample(rng).0,
+            _ if rng.uniform() < alpha => {
+                self.sample_phase_direction(self.sun_direction, c, lanes, rng)
+            }
+            _ => {
+                let n = camera_dirs.len();
+                let k = ((rng.uniform() * n as f64) as usize).min(n - 1);
+                self.sample_phase_direction(camera_dirs[k], c, lanes, rng)
+            }
+        };
+        let lobes = camera_dirs
+            .iter()
+            .map(|d| self.phase_mixture_pdf(c, lanes, d.dot(dir)))
+            .sum::<f64>()
+            / camera_dirs.len() as f64;
+        let pdf = self.direction_mixture_pdf(c, lanes, dir, lobes, at.as_ref().filter(|_| guides));
+        let mut radiance = Light::default();
+        let start = (x, dir, 1, 1.0);
+        if opts.segments.sunlight_samples > 0 {
+            self.trace_sunlit(start, [1.0; LANES], lanes, &mut radiance, rng);
+        } else {
+            self.trace(start, [1.0; LANES], lanes, &mut radiance, rng);
+        }
+        Some((dir, pdf, radiance.total))
+    }
+
+    /// [`Self::transmittance_to`] from a fixed start (the observer) along
+    /// the unit direction `dir`, through the start's cached look-ups
+    /// ([`FixedStart`]) where the rays' estimator is the table's (residual
+    /// ratio tracking, tight bounds) and the ray does not start downward.
+    pub(crate) fn transmittance_from(
+        &self,
+        start: &FixedStart,
+        dir: DVec3,
+        t_m: f64,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        let table = self.medium.transmittance_from(
+            start,
+            dir,
+            t_m,
+            lanes,
+            self.plan.segments.shadow_transmittance,
+            self.bounds,
+            rng,
+        );
+        table.or_else(|| self.transmittance_to(start.position_m(), dir, t_m, lanes, rng))
+    }
+
+    /// Transmittance from `origin` along `dir` to distance `t_m`, or `None`
+    /// where the ground hides that point.
+    pub(crate) fn transmittance_to(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        t_m: f64,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Option<Lanes> {
+        let span = self.medium.span(origin, dir)?;
+        if span.hits_ground && span.t_exit < t_m {
+            return None;
+        }
+        let mut points = [(t_m.clamp(span.t_enter, span.t_exit), [0.0; LANES])];
+        self.medium.transmittance_along(
+            origin,
+            dir,
+            span,
+            lanes,
+            self.plan.segments.shadow_transmittance,
+            self.bounds,
+            &mut points,
+            false,
+            rng,
+        );
+        Some(points[0].1)
+    }
+
+    /// A new direction for a path along `dir` scattered at `x`
+    /// (coefficients `c`), weighting `beta` by σ_s p/pdf; with the guide at
+    /// `x` if the choice looked it up.
+    fn scatter(
+        &self,
+        x: DVec3,
+        dir: DVec3,
+        c: &super::medium::Coefficients,
+        beta: &mut Lanes,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> (DVec3, Option<GuideAt<'a>>) {
+        let (new_dir, pdf, at) = self.sample_scatter_direction(x, dir, c, lanes, rng);
+        let mu = dir.dot(new_dir);
+        for (j, b) in beta.iter_mut().enumerate() {
+            *b *= self.scattering_phase(c, lanes, j, mu) / pdf;
+        }
+        (new_dir, at)
+    }
+
+    /// The sun's disc seen along `dir` through transmittance `beta` after
+    /// `depth` scatterings (at depth 0, straight along the camera ray:
+    /// [`Light::disc`] too).
+    fn add_sun_disc(
+        &self,
+        dir: DVec3,
+        depth: u32,
+        beta: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Light,
+    ) {
+        if dir.dot(self.sun_direction) >= self.cos_sun_radius {
+            let l_sun = self.sun_radiance(dir, lanes);
+            for j in 0..LANES {
+                radiance.total[j] += beta[j] * l_sun[j];
+                if depth == 0 {
+                    radiance.disc[j] += beta[j] * l_sun[j];
+                }
+            }
+        }
+    }
+
+    /// Density of [`Self::sample_phase_direction`] at cosine `mu`, per sr.
+    pub(crate) fn phase_mixture_pdf(
+        &self,
+        c: &super::medium::Coefficients,
+        lanes: &SpectralLanes,
+        mu: f64,
+    ) -> f64 {
+        let phases = self.scattering_phases(c, lanes, mu);
+        (0..lanes.active)
+            .map(|k| phases[k] / c.scattering(k))
+            .sum::<f64>()
+            / lanes.active as f64
+    }
+
+    /// Continue a path from `origin` along `dir` after `depth` scatterings
+    /// (one of `split` branches) with weight `beta`, adding what it finds to
+    /// `radiance`.
+    fn trace(
+        &self,
+        (origin, dir, depth, split): Start,
+        beta: Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Light,
+        rng: &mut Rng,
+    ) {
+        let active = lanes.active;
+        let opts = self.plan;
+        let mut beta = beta;
+        let mut origin = origin;
+        let mut dir = dir;
+        let mut depth = depth;
+        let max_order = opts.termination.max_scattering_order;
+
+        loop {
+            let mut scattered = false;
+            // The control variate's expansions where the path scattered.
+            let mut control = None;
+            let shadowed = self
+                .guide
+                .filter(|g| opts.segments.shadow_samples > 0 && depth > 0 && g.shadowed(origin));
+            if let (Some(guide), true) = (shadowed, opts.segments.next_event_estimation) {
+                // A segment from the planet's shadow: its sunlit stretch is
+                // found by the guide's density, not by chance collisions.
+                let next = self
+                    .segment(origin, dir, depth, &beta, lanes, radiance)
+                    .and_then(|segment| {
+                        let at = guide.at(self.medium, origin);
+                        self.guided_segment(&at, &segment, &beta, lanes, radiance, rng)
+                    });
+                let Some(next) = next else { break };
+                let vertex;
+                (vertex, control) = self.resolve(next, lanes, rng);
+                (origin, dir, beta) = vertex;
+                depth += 1;
+                scattered = true;
+            } else if let Some(span) = self.medium.span(origin, dir) {
+                let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
+                if depth > 0 && opts.segments.next_event_estimation {
+                    self.force_collision(&mut tracker, span, depth, &mut beta, rng);
+                }
+                while let Some(collision) = tracker.next(rng) {
+                    let x = origin + dir * collision.t;
+                    let c = self.medium.coefficients(x.length(), lanes);
+                    let majorant = collision.majorant;
+                    // A next-event estimate at a vertex after `depth` real
+                    // scatterings adds scattering order depth + 1.
+                    if opts.segments.next_event_estimation && depth < max_order {
+                        let to_sun = self.sample_sun_direction(rng);
+                        let mu = dir.dot(to_sun);
+                        let tr = self.shadow(x, to_sun, lanes, rng);
+                        let e_sun = self.sun_irradiance_toward(to_sun, lanes);
+                        for j in 0..LANES {
+                            radiance[j] += beta[j] * self.scattering_phase(&c, lanes, j, mu)
+                                / majorant
+                                * e_sun[j]
+                                * tr[j];
+                        }
+                    }
+                    if depth + 1 >= max_order {
+                        // Only lower orders wanted: continue as if null.
+                        for (j, b) in beta.iter_mut().enumerate() {
+                            *b *= 1.0 - c.extinction(j) / majorant;
+                        }
+                        continue;
+                    }
+                    if real_scattering(&c, majorant, &mut beta, lanes, rng) {
+                        control = self.control_at(x, lanes, rng);
+                        if let Some(at) = &control {
+                            self.control_in(at, &c, lanes, dir, &beta, radiance);
+                        }
+                        (dir, _) = self.scatter(x, dir, &c, &mut beta, lanes, rng);
+                        origin = x;
+                        depth += 1;
+                        scattered = true;
+                        break;
+                    }
+                }
+                if !scattered && span.hits_ground {
+                    let normal = (origin + dir * span.t_exit).normalize();
+                    let next = self.ground_vertex(normal, depth, &beta, lanes, radiance, rng);
+                    let Some(vertex) = next else { break };
+                    (origin, dir, beta) = vertex;
+                    depth += 1;
+                    scattered = true;
+                }
+            }
+            if !scattered {
+                // Escaped to space. The disc is counted here only where no
+                // next-event estimate already accounted for it.
+                if depth == 0 || !opts.segments.next_event_estimation {
+                    self.add_sun_disc(dir, depth, &beta, lanes, radiance);
+                }
+                break;
+            }
+            // Russian roulette on the largest lane weight.
+            if opts.termination.russian_roulette && depth >= 2 {
+                if !survives_roulette(&mut beta, active, depth, split, rng) {
+                    break;
+                }
+            } else if beta[..active].iter().all(|&b| b == 0.0) {
+                break;
+            }
+            if let Some(at) = &control {
+                at.subtract(lanes, dir, &beta, radiance);
+            }
+        }
+    }
+}
+
+/// A path segment: from `origin` along `dir` over `span`, after `depth`
+/// scatterings.
+struct Segment {
+    origin: DVec3,
+    dir: DVec3,
+    span: Span,
+    depth: u32,
+}
+
+/// Russian roulette after `depth` scatterings: survive with the largest
+/// active lane weight times `split` (the weight relative to its value where
+/// the path started) over [`ROULETTE_WEIGHT`] (at most 1, and at most 0.9
+/// past [`ROULETTE_CAP_DEPTH`], so paths end with probability one), dividing
+/// `beta` by that probability on survival.
+fn survives_roulette(
+    beta: &mut Lanes,
+    active: usize,
+    depth: u32,
+    split: f64,
+    rng: &mut Rng,
+) -> bool {
+    let relative = split * beta[..active].iter().copied().fold(0.0, f64::max);
+    let mut survive = (relative / ROULETTE_WEIGHT).min(1.0);
+    if depth >= ROULETTE_CAP_DEPTH {
+        survive = survive.min(0.9);
+    }
+    if rng.uniform() >= survive {
+        return false;
+    }
+    for b in beta.iter_mut() {
+        *b /= survive;
+    }
+    true
+}
+
+/// The choice at a tentative collision (coefficients `c`, under
+/// `majorant`) of [`Integrator::collide`]: whether it is a real scattering,
+/// weighting `beta` by 1/(σ̄ P_s) if so (the direction's factor is
+/// [`Integrator::scatter`]'s), else by (σ̄ − σ_t)/(σ̄ (1 − P_s)).
+fn real_scattering(
+    c: &super::medium::Coefficients,
+    majorant: f64,
+    beta: &mut Lanes,
+    lanes: &SpectralLanes,
+    rng: &mut Rng,
+) -> bool {
+    let p_scatter = ((0..lanes.active)
+        .map(|j| c.scattering(j) / (majorant - c.absorption[j]).max(1e-300))
+        .sum::<f64>()
+        / lanes.active as f64)
+        .clamp(0.0, 1.0);
+    if rng.uniform() < p_scatter {
+        for b in beta.iter_mut() {
+            *b /= majorant * p_scatter;
+        }
+        return true;
+    }
+    for (j, b) in beta.iter_mut().enumerate() {
+        *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
+    }
+    false
+}
+
+/// The ground vertex under unit `normal`, just above the surface.
+fn ground_point(medium: &Medium, normal: DVec3) -> DVec3 {
+    normal * (medium.planet_radius_m + SURFACE_OFFSET_M)
+}
+
+/// Cosine-weighted direction about `normal` (Malley's method).
+fn cosine_sample_hemisphere(normal: DVec3, rng: &mut Rng) -> DVec3 {
+    let r = rng.uniform().sqrt();
+    let (sin_phi, cos_phi) = sin_cos_turns(rng.uniform());
+    let z = (1.0 - r * r).max(0.0).sqrt();
+    let (t, b) = orthonormal_basis(normal);
+    (t * (r * cos_phi) + b * (r * sin_phi) + normal * z).normalize()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::plan::IntegratorOptions;
+
+    #[test]
+    fn sun_directions_are_unit_and_uniform_over_the_disc() {
+        // Not normalised (see `sample_sun_direction`): unit to 1e-14 for
+        // suns all over the sky, inside the disc's cone, and uniform in
+        // solid angle (half the directions within the cone of half its
+        // solid angle, to 4 standard errors).
+        let atmosphere =
+            crate::atmosphere::Atmosphere::new(crate::atmosphere::AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        let plan = TechniquePlan::outside_a_scene(&IntegratorOptions::default());
+        let mut rng = Rng::new(3, 4);
+        for (az, el) in [
+            (0.0, 90.0),
+            (123.0, 45.0),
+            (270.0, 2.0),
+            (10.0, -4.0),
+            (200.0, -90.0),
+        ] {
+            let sun = super::super::direction_from_az_el(az, el);
+            let integrator = Integrator::new(&medium, &plan, sun);
+            let cos_radius = integrator.cos_sun_radius;
+            let cos_half = 1.0 - 0.5 * (1.0 - cos_radius);
+            let n = 20_000;
+            let mut inner = 0;
+            for _ in 0..n {
+                let dir = integrator.sample_sun_direction(&mut rng);
+                assert!((dir.length() - 1.0).abs() < 1e-14, "{az} {el}: {dir}");
+                let cos = dir.dot(sun);
+                assert!(cos >= cos_radius - 1e-15, "{az} {el}: {cos}");
+                inner += u32::from(cos >= cos_half);
+            }
+            let share = f64::from(inner) / f64::from(n);
+            assert!(
+                (share - 0.5).abs() < 4.0 * (0.25 / f64::from(n)).sqrt(),
+                "{share}"
+            );
+        }
+    }
+
+    #[test]
+    fn the_weight_window_splits_within_its_cap_and_roulettes_dim_paths() {
+        use crate::atmosphere::{Atmosphere, AtmosphereParams};
+        let atmosphere = Atmosphere::new(AtmosphereParams::default());
+        let medium = Medium::new(&atmosphere);
+        let sun = super::super::direction_from_az_el(270.0, -4.0);
+        let guide = SkyGuide::new(&medium, sun);
+        let plan = TechniquePlan::outside_a_scene(&IntegratorOptions {
+            splitting: Some(true),
+            ..IntegratorOptions::default()
+        });
+        let integrator = Integrator::new(&medium, &plan, sun).with_sky_guide(&guide);
+        let lanes = SpectralLanes::new([450.0, 520.0, 590.0, 660.0], LANES, &medium, false);
+        let x = DVec3::new(0.0, 0.0, medium.planet_radius_m + 20_000.0);
+        let c = medium.coefficients(x.length(), &lanes);
+        let here = integrator
+            .importance(x)
+            .expect("light reaches 20 km at twilight");
+        let sigma = (0..LANES).map(|j| c.scattering(j)).fold(0.0, f64::max);
+        let mut rng = Rng::new(1, 2);
+        // Weights for a given expected light relative to a reference of 1.
+        let beta_for = |expected: f64| [expected / (sigma * here); LANES];
+        let start = |reference: f64| Window {
+            reference,
+            copies: 1,
+        };
+        let window = |beta: &mut Lanes, window: Window, rng: &mut Rng| {
+            let (copies, window) = integrator
+                .weight_window(x, &c, beta, (3, 1.0, window), &lanes, rng)
+                .unwrap();
+            (copies, window.reference, window.copies)
+        };
+        // Inside the window: one copy, nothing changes.
+        let mut beta = beta_for(1.0);
+        assert_eq!(window(&mut beta, start(1.0), &mut rng), (1, 1.0, 1));
+        assert_eq!(beta, beta_for(1.0));
+        // 3× the start's light: three copies, same reference.
+        assert_eq!(
+            window(&mut beta_for(3.0), start(1.0), &mut rng),
+            (3, 1.0, 3)
+        );
+        // A start with next to no light: the cap holds, and the copies'
+        // reference rises to their expected light.
+        let (copies, reference, lineage) = window(&mut beta_for(1.0), start(1e-30), &mut rng);
+        assert_eq!((copies, lineage), (MAX_SPLIT, MAX_SPLIT));
+        let each = 1e30 / MAX_SPLIT as f64;
+        assert!((reference / (each * 1e-30) - 1.0).abs() < 1e-9);
+        let lifted = Window {
+            reference,
+            copies: lineage,
+        };
+        let (again, _, _) = window(&mut beta_for(1.0 / MAX_SPLIT as f64), lifted, &mut rng);
+        assert!(again <= 1, "copies split again: {again}");
+        // A path already one of MAX_COPIES / 2 copies of its start splits
+        // into 2 at most, however bright; one of MAX_COPIES, not at all,
+        // and its reference rises to its expected light.
+        let many = |copies: usize| Window {
+            reference: 1.0,
+            copies,
+        };
+        let (copies, reference, lineage) =
+            window(&mut beta_for(100.0), many(MAX_COPIES / 2), &mut rng);
+        assert_eq!((copies, lineage), (2, MAX_COPIES));
+        assert!((reference - 50.0).abs() < 1e-9);
+        let (copies, reference, lineage) = window(&mut beta_for(100.0), many(MAX_COPIES), &mut rng);
+        assert_eq!((copies, lineage), (1, MAX_COPIES));
+        assert!((reference - 100.0).abs() < 1e-9);
+        // A tenth of the start's light: survives 40 % of the time, with
+        // its weight divided by 0.4.
+        let trials = 20_000;
+        let mut survived = 0;
+        for _ in 0..trials {
+            let mut beta = beta_for(0.1);
+            let (copies, _, _) = window(&mut beta, start(1.0), &mut rng);
+            if copies == 1 {
+                survived += 1;
+                assert!((beta[0] / beta_for(0.1)[0] - 2.5).abs() < 1e-9);
+            }
+        }
+        let rate = f64::from(survived) / f64::from(trials);
+        let sigma_rate = (0.4 * 0.6 / f64::from(trials)).sqrt();
+        assert!((rate - 0.4).abs() < 5.0 * sigma_rate, "survival {rate}");
+    }
+}
