@@ -6,7 +6,9 @@
 /// A parsed numeric CSV table.
 #[derive(Clone, Debug)]
 pub struct Table {
+    /// Column names from the header.
     pub columns: Vec<String>,
+    /// The rows, one value per column.
     pub rows: Vec<Vec<f64>>,
 }
 

@@ -7,11 +7,14 @@
 #[derive(Clone, Debug, PartialEq, thiserror::Error)]
 #[error("invalid {parameter}: {message}")]
 pub struct SceneError {
+    /// The parameter as the user wrote it (a TOML key, a flag, a file).
     pub parameter: String,
+    /// What is wrong, naming the valid range or form.
     pub message: String,
 }
 
 impl SceneError {
+    /// An error for `parameter`.
     pub fn new(parameter: &str, message: impl Into<String>) -> Self {
         Self {
             parameter: parameter.to_owned(),

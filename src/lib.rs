@@ -25,6 +25,8 @@
 //! assert!(image.pixels[0][2] > 0.0); // the zenith row is lit
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod app;
 pub mod atmosphere;
 pub mod bench;

@@ -120,6 +120,7 @@ impl Rng {
         (word >> 43) ^ word
     }
 
+    /// The next 32 random bits.
     pub fn next_u32(&mut self) -> u32 {
         let old = self.state;
         self.state = old.wrapping_mul(MULTIPLIER).wrapping_add(self.inc);

@@ -68,6 +68,7 @@ impl ColourMatching {
         }
     }
 
+    /// The colour-matching functions of `observer`, read once.
     pub fn get(observer: Observer) -> &'static Self {
         static JV: OnceLock<ColourMatching> = OnceLock::new();
         static CIE: OnceLock<ColourMatching> = OnceLock::new();

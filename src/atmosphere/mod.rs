@@ -44,10 +44,12 @@ pub struct AtmosphereParams {
     /// the scene file's folder).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ground_albedo_spectrum: Option<String>,
+    /// Ozone absorption (Chappuis and Huggins bands).
     pub ozone: bool,
     /// Total ozone column, Dobson units; `None` keeps the AFGL profile's own
     /// column (≈ 344 DU).
     pub ozone_du: Option<f64>,
+    /// Aerosols (haze; Mars: dust).
     pub aerosols: bool,
     /// Multiplier of Elterman's aerosol profile (0 = none, 1 = standard).
     pub aerosol_amount: f64,
@@ -55,6 +57,7 @@ pub struct AtmosphereParams {
     pub aerosol_g: f64,
     /// Aerosol single-scattering albedo.
     pub aerosol_albedo: f64,
+    /// The aerosols' phase-function model, with `aerosol_g`.
     pub aerosol_phase: aerosol::PhaseModel,
     /// The aerosol by its optical properties (`[atmosphere.aerosol]`); each
     /// key given takes the place of the flat key above it stands for.
@@ -482,6 +485,7 @@ impl AtmosphereParams {
 /// Optical properties of the atmosphere described by [`AtmosphereParams`].
 #[derive(Clone, Debug)]
 pub struct Atmosphere {
+    /// The parameters the atmosphere was built from.
     pub params: AtmosphereParams,
     /// Factor applied to the AFGL ozone profile (target column / own column).
     ozone_scale: f64,
@@ -494,8 +498,11 @@ pub struct Atmosphere {
 /// Vertical optical depths from some altitude to the top of the atmosphere.
 #[derive(Clone, Copy, Debug, Serialize)]
 pub struct OpticalDepth {
+    /// Rayleigh scattering by the air.
     pub rayleigh: f64,
+    /// Ozone absorption.
     pub ozone: f64,
+    /// Aerosol extinction.
     pub aerosol: f64,
 }
 

@@ -14,36 +14,58 @@ use crate::scene::Scene;
 /// Bytes in a GiB.
 pub(super) const GIB: f64 = 1024.0 * 1024.0 * 1024.0;
 
+/// Parallel scaling from one thread to all.
 #[derive(Clone, Debug, Serialize)]
 pub struct ScalingResult {
+    /// The scene measured.
     pub scene: String,
+    /// Threads of the parallel run.
     pub threads: usize,
+    /// Camera paths per second with one thread.
     pub paths_per_s_1_thread: f64,
+    /// Camera paths per second with every thread.
     pub paths_per_s_all: f64,
+    /// `paths_per_s_all` over `paths_per_s_1_thread`.
     pub speedup: f64,
+    /// Speedup over the thread count.
     pub efficiency: f64,
     /// CPU time over (wall time × threads) in each configuration.
     pub cpu_share_1_thread: f64,
+    /// The same with every thread.
     pub cpu_share_all: f64,
 }
 
+/// Peak memory of one render, measured as a child process.
 #[derive(Clone, Debug, Serialize)]
 pub struct MemoryResult {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// Samples per pixel rendered.
     pub spp: u32,
+    /// Peak resident set size, bytes.
     pub peak_rss_bytes: u64,
+    /// The same, GiB.
     pub peak_rss_gib: f64,
+    /// Wall time of the child, s.
     pub seconds: f64,
+    /// How the peak was read (GNU time or /proc polling).
     pub method: &'static str,
+    /// The command line of the child.
     pub command: String,
 }
 
+/// The machine the benchmark ran on.
 #[derive(Clone, Debug, Serialize)]
 pub struct Machine {
+    /// Logical CPUs.
     pub cpus: usize,
+    /// CPU model name.
     pub model: String,
+    /// Load averages before the run (/proc/loadavg).
     pub loadavg_before: String,
+    /// Load averages after the run.
     pub loadavg_after: String,
 }
 

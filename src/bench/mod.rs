@@ -105,6 +105,7 @@ pub const DEFAULT_SCENES: [&str; 7] = [
 pub const PREVIEW: &str = "preview";
 /// Size of the fixed benchmark scenes (equirectangular).
 pub const BENCH_WIDTH: u32 = 256;
+/// Height of the fixed benchmark scenes (equirectangular).
 pub const BENCH_HEIGHT: u32 = 128;
 /// Seed of the first of the two independent renders (the second takes the
 /// next).

@@ -25,6 +25,7 @@ pub enum SkyMask {
 }
 
 impl SkyMask {
+    /// The mask for `scene`: lit pixels from above the air, else the sky above the horizon.
     pub fn for_scene(scene: &Scene) -> Self {
         if scene.observer.altitude_m >= scene.atmosphere.top_altitude_m {
             Self::Lit
@@ -33,6 +34,7 @@ impl SkyMask {
         }
     }
 
+    /// The mask in words, for the report.
     pub fn describe(self) -> &'static str {
         match self {
             Self::AboveHorizon => "pixel centres above the horizon",
@@ -122,6 +124,7 @@ fn luminance(film: &Film) -> Vec<f64> {
 /// Result of one two-image noise measurement.
 #[derive(Clone, Debug, Serialize)]
 pub struct NoiseRun {
+    /// Relative RMS noise of the mean image over the sky pixels.
     pub noise: f64,
     /// Mean luminance over the sky pixels, cd m⁻².
     pub mean_luminance_cd_m2: f64,
@@ -130,17 +133,23 @@ pub struct NoiseRun {
     /// CPU time this process got meanwhile over (wall time × threads): below
     /// 1 when other processes competed for the cores.
     pub cpu_share: f64,
+    /// Camera paths traced in A and B.
     pub paths: u64,
+    /// Passes of A and of B.
     pub passes: [u32; 2],
+    /// Pixels in the sky mask.
     pub sky_pixels: usize,
+    /// Samples discarded as not finite.
     pub discarded: u64,
     /// Relative noise over the ground: the pixels whose centre's ray meets
     /// it (sun cone excluded; NaN where none does).
     pub noise_ground: f64,
+    /// Pixels below the horizon (the ground).
     pub ground_pixels: usize,
     /// Relative noise over the whole image: every pixel with a ray (lit,
     /// for an observer above the air), the sun's cone excluded.
     pub noise_whole: f64,
+    /// Pixels of the whole image, the sun's cone left out.
     pub whole_pixels: usize,
     /// Correlation of the relative A − B differences of horizontal
     /// neighbours, of vertical ones, and of pixels at the same angle from
@@ -149,7 +158,9 @@ pub struct NoiseRun {
     /// noise. Mirror partners are left out of every pair (their symmetry
     /// is by construction).
     pub row_correlation: f64,
+    /// See `row_correlation`: vertical neighbours.
     pub column_correlation: f64,
+    /// See `row_correlation`: pixels on one circle about the sun's axis.
     pub circle_correlation: f64,
     /// RMS error of one first pass (the draft, another seed) against the
     /// mean of A and B over the whole image, relative to its mean
@@ -159,6 +170,7 @@ pub struct NoiseRun {
 }
 
 impl NoiseRun {
+    /// Camera paths per second of wall time.
     pub fn paths_per_s(&self) -> f64 {
         self.paths as f64 / self.seconds.max(1e-9)
     }

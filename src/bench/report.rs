@@ -15,17 +15,26 @@ pub(super) const MEMORY_TARGET_GIB: f64 = 1.5;
 /// One row of the per-scene table; exactly the keys of the issue.
 #[derive(Clone, Debug, Serialize)]
 pub struct SceneResult {
+    /// The scene's name.
     pub scene: String,
+    /// Camera paths per second.
     pub paths_per_s: f64,
+    /// Relative noise over the sky at the budget.
     pub noise_at_budget: f64,
+    /// The time budget, s.
     pub budget_s: f64,
+    /// Time to 2 % noise over the sky, extrapolated, s.
     pub time_to_2pct_s: f64,
+    /// Time to 1 % noise over the sky, extrapolated, s.
     pub time_to_1pct_s: f64,
+    /// Time to the preview's first frame, ms.
     pub first_frame_ms: f64,
+    /// Render threads.
     pub threads: usize,
     /// Relative noise over the ground, and over the whole image (sun cone
     /// excluded), at the budget.
     pub noise_ground_at_budget: f64,
+    /// See `noise_ground_at_budget`: over the whole image.
     pub noise_whole_at_budget: f64,
     /// Time to 1 % noise over the whole image of a 4096×2048 render,
     /// extrapolated: noise ∝ 1/√time, time ∝ pixels.
@@ -40,19 +49,33 @@ pub struct SceneResult {
 /// Everything else measured per scene.
 #[derive(Clone, Debug, Serialize)]
 pub struct SceneDetail {
+    /// The scene's name.
     pub scene: String,
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
+    /// Camera kind.
     pub camera: &'static str,
+    /// Sun elevation at the observer, degrees.
     pub sun_elevation_deg: f64,
+    /// Observer altitude, m.
     pub observer_altitude_m: f64,
+    /// Which pixels the sky noise covers.
     pub sky_mask: SkyMask,
+    /// Wavelengths carried per path.
     pub wavelengths_per_path: usize,
+    /// Spectral samples (paths × lanes) per second.
     pub spectral_samples_per_s: f64,
+    /// The two-image noise measurement.
     pub run: NoiseRun,
+    /// Width of the first-frame scene, pixels.
     pub first_frame_width: u32,
+    /// Height of the first-frame scene, pixels.
     pub first_frame_height: u32,
+    /// Time to set the renderer up before the first frame, ms.
     pub first_frame_setup_ms: f64,
+    /// The noise target at the budget, if the scene has one.
     pub noise_target: Option<f64>,
     /// Extrapolated time to the noise target, s.
     pub time_to_target_s: Option<f64>,
@@ -63,8 +86,11 @@ pub struct SceneDetail {
 /// One ablation variant of one scene.
 #[derive(Clone, Debug, Serialize)]
 pub struct AblationRow {
+    /// The scene's name.
     pub scene: String,
+    /// The variant (`key=value` of `[render.integrator]` or `[render]`).
     pub variant: String,
+    /// Relative sky noise of the variant at the budget.
     pub noise_at_budget: f64,
     /// Render time the variant actually took (more than the budget where one
     /// pass each overran it), s.
@@ -75,27 +101,39 @@ pub struct AblationRow {
     pub noise_ratio: f64,
     /// Time the variant needs for the full renderer's noise, relative (= ratio²).
     pub time_ratio: f64,
+    /// Camera paths per second of the variant.
     pub paths_per_s: f64,
     /// Mean sky luminance of the variant over the full renderer's (≈ 1: unbiased).
     pub mean_ratio: f64,
+    /// CPU time over (wall time × threads) while the variant ran.
     pub cpu_share: f64,
 }
 
 /// The whole report (`--json` prints it).
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
+    /// The command line that produced the report.
     pub command: String,
     /// A smoke run (`--quick`): budgets too small for the targets, so
     /// none is judged (shown as "n/a", `target_met` null).
     pub smoke: bool,
+    /// The machine.
     pub machine: Machine,
+    /// The time budget per scene, s.
     pub budget_s: f64,
+    /// Render threads.
     pub threads: usize,
+    /// One row per scene.
     pub scenes: Vec<SceneResult>,
+    /// The measurement behind each row.
     pub details: Vec<SceneDetail>,
+    /// Ablation rows (`--ablation`).
     pub ablation: Vec<AblationRow>,
+    /// Parallel scaling (`--scaling`).
     pub scaling: Option<ScalingResult>,
+    /// Peak memory (`--memory`).
     pub memory: Option<MemoryResult>,
+    /// Remarks on the run (load, smoke budgets).
     pub notes: Vec<String>,
 }
 

@@ -25,18 +25,24 @@ macro_rules! outln {
     };
 }
 
+/// The command line's subcommands (the benchmark is the binary's own).
 #[derive(Subcommand, Debug)]
 pub enum Command {
     /// Render an image (EXR: linear HDR, Y in cd/m²; PNG: tone-mapped sRGB).
     Render {
+        /// The scene and its overrides.
         #[command(flatten)]
         scene: SceneArgs,
+        /// An animation over time.
         #[command(flatten)]
         sequence: render::SequenceArgs,
+        /// A part of a split render (tiles, passes).
         #[command(flatten)]
         split: render::SplitArgs,
+        /// Spectral EXR output.
         #[command(flatten)]
         spectral: render::SpectralArgs,
+        /// Compositing layers.
         #[command(flatten)]
         layers: render::LayerArgs,
         /// Output file, .exr or .png; for a timelapse, a name with a run of
@@ -56,6 +62,7 @@ pub enum Command {
     },
     /// Spectral radiance seen by the observer in one direction.
     Radiance {
+        /// The scene and its overrides.
         #[command(flatten)]
         scene: SceneArgs,
         /// View zenith angle, degrees, 0 (straight up) to 180.
@@ -84,6 +91,7 @@ pub enum Command {
     },
     /// Properties of the model atmosphere at one altitude.
     Atmosphere {
+        /// The scene and its overrides.
         #[command(flatten)]
         scene: SceneArgs,
         /// Wavelength for the optical coefficients, nm.

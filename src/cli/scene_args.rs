@@ -395,14 +395,19 @@ impl SceneArgs {
 /// A one-line user-facing error.
 #[derive(Debug, thiserror::Error)]
 pub enum CliError {
+    /// The scene is invalid.
     #[error(transparent)]
     Scene(#[from] SceneError),
+    /// The output cannot be written.
     #[error(transparent)]
     Output(#[from] output::OutputError),
+    /// The render does not fit in memory.
     #[error(transparent)]
     Memory(#[from] OutOfMemory),
+    /// The export failed.
     #[error(transparent)]
     Export(#[from] crate::export::ExportError),
+    /// Any other failure, as a message.
     #[error("{0}")]
     Other(String),
 }

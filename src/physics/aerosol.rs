@@ -35,6 +35,7 @@ impl Profile {
         }
     }
 
+    /// The table, read once.
     pub fn get() -> &'static Self {
         static PROFILE: OnceLock<Profile> = OnceLock::new();
         PROFILE.get_or_init(Self::load)
@@ -117,6 +118,7 @@ impl SpectralFactor {
         }
     }
 
+    /// The table, read once.
     pub fn get() -> &'static Self {
         static FACTOR: OnceLock<SpectralFactor> = OnceLock::new();
         FACTOR.get_or_init(Self::derive)
@@ -208,6 +210,7 @@ impl PhaseModel {
         })
     }
 
+    /// The phase function per steradian at cosine `mu` for parameter `g`.
     pub fn eval(self, mu: f64, g: f64) -> f64 {
         match self {
             Self::HenyeyGreenstein => henyey_greenstein(mu, g),

@@ -96,6 +96,7 @@ impl Profile {
         }
     }
 
+    /// The table, read once.
     pub fn get() -> &'static Self {
         static PROFILE: OnceLock<Profile> = OnceLock::new();
         PROFILE.get_or_init(Self::load)

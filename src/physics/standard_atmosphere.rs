@@ -35,9 +35,13 @@ const P0_PA: f64 = 101_325.0;
 /// The state of the air at one altitude.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct AirState {
+    /// Temperature, K.
     pub temperature_k: f64,
+    /// Pressure, Pa.
     pub pressure_pa: f64,
+    /// Mass density, kg m⁻³.
     pub density_kg_m3: f64,
+    /// Number density of air molecules, m⁻³.
     pub number_density_m3: f64,
 }
 

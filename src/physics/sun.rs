@@ -40,6 +40,7 @@ impl Spectrum {
         }
     }
 
+    /// The table, read once.
     pub fn get() -> &'static Self {
         static SPECTRUM: OnceLock<Spectrum> = OnceLock::new();
         SPECTRUM.get_or_init(Self::load)

@@ -31,6 +31,7 @@ pub fn direction_from_az_el(azimuth_deg: f64, elevation_deg: f64) -> DVec3 {
 /// that [`Camera::pixel_density_bounded`] accepts.
 pub const MAX_PIXEL_DENSITY_RATIO: f64 = 4.0;
 
+/// A camera of the scene at a given image size: pixels to view rays.
 #[derive(Clone, Debug)]
 pub struct Camera {
     kind: CameraKind,
@@ -48,6 +49,7 @@ pub struct Camera {
 }
 
 impl Camera {
+    /// The camera of `params` for a `width` × `height` image.
     pub fn new(params: &CameraParams, width: u32, height: u32) -> Self {
         let forward = direction_from_az_el(params.yaw_deg, params.pitch_deg);
         let (sy, cy) = params.yaw_deg.to_radians().sin_cos();
@@ -303,6 +305,7 @@ pub enum MirrorAxis {
 /// plane as the camera sees it (see the module documentation).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Mirror {
+    /// Which lines the mirror reflects.
     pub axis: MirrorAxis,
     /// c in the line map i ↦ (c − 1 − i) mod n, 0 ≤ c < n (n the lines).
     pub centre: u32,

@@ -232,7 +232,9 @@ struct PolarDensities {
 /// its cell's moment ([`LearnedPoints`]; `None` where it splatted nothing).
 #[derive(Clone, Copy, Debug)]
 pub struct Walked {
+    /// Splats discarded as not finite.
     pub discarded: u64,
+    /// The walk's term of its cell's moment.
     pub moment: Option<(usize, f64)>,
 }
 

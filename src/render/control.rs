@@ -70,6 +70,7 @@ pub struct Frame {
 }
 
 impl Frame {
+    /// The frame at point `x` for the sun along `sun_direction`.
     pub fn new(x: DVec3, sun_direction: DVec3) -> Self {
         Self {
             axes: LocalAxes::new(x, sun_direction),

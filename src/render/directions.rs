@@ -13,11 +13,14 @@ use glam::DVec3;
 /// A grid of direction cells: zenith bands × azimuth sectors (0–180°).
 #[derive(Clone, Copy, Debug)]
 pub struct Grid {
+    /// Zenith bands.
     pub zenith: usize,
+    /// Azimuth sectors.
     pub azimuth: usize,
 }
 
 impl Grid {
+    /// Cells in all.
     pub fn cells(self) -> usize {
         self.zenith * self.azimuth
     }
@@ -56,8 +59,11 @@ pub fn horizon_cosine(planet_radius_m: f64, r_m: f64) -> f64 {
 /// zenith or nadir) and the one across it.
 #[derive(Clone, Copy, Debug)]
 pub struct LocalAxes {
+    /// The local vertical.
     pub up: DVec3,
+    /// Horizontal, toward the sun's azimuth.
     pub toward_sun: DVec3,
+    /// Horizontal, across the sun's azimuth.
     pub across_sun: DVec3,
 }
 
@@ -254,10 +260,12 @@ pub struct SunCells {
     across_sun: DVec3,
     /// Cells in altitude and in solar zenith.
     pub altitude: usize,
+    /// See `altitude`: cells in solar zenith.
     pub sun_zenith: usize,
 }
 
 impl SunCells {
+    /// Cells over the atmosphere of a planet of `planet_radius_m`.
     pub fn new(
         planet_radius_m: f64,
         top_radius_m: f64,

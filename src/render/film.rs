@@ -44,9 +44,12 @@ use super::parts::{pick, PartData, PassRange, Tile};
 use crate::output::RgbImage;
 use crate::spectrum::xyz_to_rec709;
 
+/// The image being accumulated: exact sums per pixel, the adaptive plan, and the optional layers, spectral bands and splats.
 #[derive(Clone, Debug)]
 pub struct Film {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
     /// Weighted sum of XYZ (cd m⁻² for Y) over the row's passes, exact
     /// (so that parts of a render merge bit for bit, [`super::parts`]).

@@ -64,8 +64,11 @@ pub fn spectral_bytes_per_pixel(bands: u32, splatting: bool) -> u64 {
 /// density and the lane count, L(λ) / (p(λ) n), W m⁻² sr⁻¹.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SampleLanes {
+    /// Lanes in use.
     pub active: usize,
+    /// Each lane's wavelength, nm.
     pub wavelengths_nm: [f64; LANES],
+    /// Each lane's L(λ) / (p(λ) n).
     pub values: [f64; LANES],
 }
 
@@ -85,7 +88,9 @@ impl SampleLanes {
 /// L(λ) / (p(λ) n) × the splat's weight; inactive lanes hold 0.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct SplatLanes {
+    /// Each lane's wavelength, nm.
     pub wavelengths_nm: [f32; LANES],
+    /// Each lane's weighted L(λ) / (p(λ) n).
     pub values: [f32; LANES],
 }
 

@@ -141,6 +141,7 @@ pub struct LaneTable {
 impl LaneTable {
     const STEP_NM: f64 = 0.25;
 
+    /// The table over `from_nm`–`to_nm` for the sun `source`.
     pub fn new(medium: &Medium, (from_nm, to_nm): (f64, f64), source: SolarSource) -> Self {
         let count = ((to_nm - from_nm) / Self::STEP_NM).ceil() as usize + 1;
         Self {
@@ -176,6 +177,7 @@ impl LaneTable {
 }
 
 impl SpectralLanes {
+    /// The lanes for `wavelengths_nm`, `active` of them distinct, with the measured sun or (`unit_sun`) unit irradiance.
     pub fn new(wavelengths_nm: Lanes, active: usize, medium: &Medium, unit_sun: bool) -> Self {
         Self::with_source(
             wavelengths_nm,

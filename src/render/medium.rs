@@ -122,7 +122,9 @@ struct Node {
 
 /// The medium of one scene, shared read-only by all render threads.
 pub struct Medium {
+    /// The planet's radius, m.
     pub planet_radius_m: f64,
+    /// Radius of the atmosphere's top, m.
     pub top_radius_m: f64,
     nodes: Vec<Node>,
     pub(super) shell_radii_m: Vec<f64>,
@@ -160,15 +162,20 @@ pub struct Medium {
 /// Scattering and absorption coefficients at a point, m⁻¹, per lane.
 #[derive(Clone, Copy, Debug, Default)]
 pub struct Coefficients {
+    /// Rayleigh scattering, m⁻¹.
     pub rayleigh: Lanes,
+    /// Aerosol scattering, m⁻¹.
     pub aerosol_scattering: Lanes,
+    /// Absorption (ozone and aerosols), m⁻¹.
     pub absorption: Lanes,
 }
 
 impl Coefficients {
+    /// Scattering coefficient of lane `lane`, m⁻¹.
     pub fn scattering(&self, lane: usize) -> f64 {
         self.rayleigh[lane] + self.aerosol_scattering[lane]
     }
+    /// Extinction coefficient of lane `lane`, m⁻¹.
     pub fn extinction(&self, lane: usize) -> f64 {
         self.scattering(lane) + self.absorption[lane]
     }
@@ -268,10 +275,13 @@ impl ShellTerms {
 /// Per-wavelength constants of one path.
 #[derive(Clone, Debug)]
 pub struct SpectralLanes {
+    /// Each lane's wavelength, nm.
     pub wavelengths_nm: Lanes,
     /// Number of distinct active lanes (1–4); lanes beyond repeat lane 0.
     pub active: usize,
+    /// Each lane's Rayleigh cross-section, m².
     pub rayleigh_m2: Lanes,
+    /// Each lane's Rayleigh phase-function depolarisation term γ.
     pub rayleigh_gamma: Lanes,
     pub(super) ozone_m2: [[f64; 11]; LANES],
     pub(super) ozone_max_m2: Lanes,
@@ -348,8 +358,11 @@ impl SpectralLanes {
 /// Where a ray runs through the atmosphere.
 #[derive(Clone, Copy, Debug)]
 pub struct Span {
+    /// Distance where the ray enters the atmosphere, m.
     pub t_enter: f64,
+    /// Distance where it leaves it (or meets the ground), m.
     pub t_exit: f64,
+    /// Whether it ends on the ground.
     pub hits_ground: bool,
 }
 
@@ -378,6 +391,7 @@ fn node_at(nodes: &[Node], z_m: f64) -> Node {
 }
 
 impl Medium {
+    /// The medium of `atmosphere`, its profiles cached on the node grid.
     pub fn new(atmosphere: &Atmosphere) -> Self {
         let p = &atmosphere.params;
         let ground = p

@@ -20,6 +20,7 @@ pub struct OutOfMemory {
 }
 
 impl Renderer {
+    /// A film for this render (aborts if memory runs out; see `try_new_film`).
     pub fn new_film(&self) -> Film {
         self.try_new_film().unwrap_or_else(|e| panic!("{e}"))
     }

@@ -11,8 +11,11 @@ use crate::rng::Rng;
 /// One spectral radiance estimate with its Monte Carlo standard error.
 #[derive(Clone, Copy, Debug, serde::Serialize)]
 pub struct SpectralEstimate {
+    /// The wavelength, nm.
     pub wavelength_nm: f64,
+    /// Spectral radiance, W m⁻² sr⁻¹ nm⁻¹ (or per unit irradiance).
     pub radiance: f64,
+    /// Its Monte Carlo standard error.
     pub std_error: f64,
     /// Paths whose estimate was not finite (or negative without the control
     /// variate): counted as 0,

@@ -62,7 +62,9 @@ pub fn mirror_pairs(scene: &Scene) -> Option<Mirror> {
 
 /// A scene made ready to render.
 pub struct Renderer {
+    /// The scene as validated.
     pub scene: Scene,
+    /// Its atmosphere.
     pub atmosphere: Atmosphere,
     pub(super) medium: Medium,
     pub(super) camera: Camera,
@@ -122,6 +124,7 @@ pub struct PassStats {
 }
 
 impl Renderer {
+    /// The renderer of `scene`, or why the scene is invalid.
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
         scene.validate()?;
         let atmosphere = Atmosphere::new(scene.atmosphere.clone());
@@ -189,10 +192,12 @@ impl Renderer {
         &self.plan
     }
 
+    /// The camera.
     pub fn camera(&self) -> &Camera {
         &self.camera
     }
 
+    /// Unit vector toward the sun's centre.
     pub fn sun_direction(&self) -> DVec3 {
         self.sun_direction
     }

@@ -69,7 +69,9 @@ pub struct Frame {
     /// Camera paths in `image` (more than `spp` per pixel under adaptive
     /// sampling).
     pub paths: u64,
+    /// Time since the scene started rendering.
     pub elapsed: Duration,
+    /// Samples discarded as not finite.
     pub discarded: u64,
     /// The target sample count was reached.
     pub finished: bool,
@@ -110,6 +112,7 @@ impl Default for RenderService {
 }
 
 impl RenderService {
+    /// A service with its render thread started.
     pub fn new() -> Self {
         let shared = Arc::new(Shared {
             state: Mutex::new(State::default()),
@@ -146,6 +149,7 @@ impl RenderService {
         state.scene = None;
     }
 
+    /// Pauses or resumes rendering (the accumulated image stays).
     pub fn set_paused(&self, paused: bool) {
         self.shared.state.lock().unwrap().paused = paused;
         self.shared.wake.notify_all();

@@ -61,7 +61,9 @@ pub type Importance = Arc<dyn Fn(&Medium, DVec3) -> f64 + Send + Sync>;
 /// importance of the point instead of σ_s T.
 #[derive(Clone, Copy)]
 pub struct Weighting<'a> {
+    /// The share drawn by importance, 0–1.
     pub share: f64,
+    /// The importance at a point.
     pub importance: &'a dyn Fn(&Medium, DVec3) -> f64,
 }
 
@@ -335,7 +337,9 @@ impl InScatterDistribution {
 /// importance where one is given, [`Weighting`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Component {
+    /// The whole density.
     Mixture,
+    /// Its skylight part alone.
     Skylight,
 }
 
@@ -437,6 +441,7 @@ pub struct DensityBuilder {
 }
 
 impl DensityBuilder {
+    /// A builder for the sun along `sun_direction` in `medium`.
     pub fn new(medium: &Medium, sun_direction: DVec3) -> Self {
         Self {
             sun_direction,
@@ -501,6 +506,7 @@ fn sun_optical_depth(lanes: &SpectralLanes, j: usize, [air, o3, aer]: [f64; 3]) 
 pub struct DensitySlots(Vec<OnceLock<Option<InScatterDistribution>>>);
 
 impl DensitySlots {
+    /// Room for `slots` densities.
     pub fn new(slots: usize) -> Self {
         Self((0..slots).map(|_| OnceLock::new()).collect())
     }

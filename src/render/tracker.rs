@@ -33,6 +33,7 @@ impl Medium {
 /// A tentative collision of the majorant process.
 #[derive(Clone, Copy, Debug)]
 pub struct Collision {
+    /// Distance along the ray, m.
     pub t: f64,
     /// The (common) majorant at the collision, m⁻¹.
     pub majorant: f64,

@@ -81,6 +81,7 @@ impl Default for Sun {
     }
 }
 
+/// Where the observer stands.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ObserverPosition {
@@ -108,8 +109,10 @@ pub enum CameraKind {
 }
 
 impl CameraKind {
+    /// Every camera kind, in the app's order.
     pub const ALL: [CameraKind; 3] = [Self::Perspective, Self::Equirect, Self::Fisheye];
 
+    /// The kind's name as the CLI and TOML write it.
     pub fn name(self) -> &'static str {
         match self {
             Self::Perspective => "perspective",
@@ -127,6 +130,7 @@ impl CameraKind {
         }
     }
 
+    /// The kind named `name`, or an error naming the valid ones.
     pub fn parse(name: &str) -> Result<Self, SceneError> {
         Self::ALL
             .into_iter()
@@ -140,9 +144,11 @@ impl CameraKind {
     }
 }
 
+/// The camera: its kind, orientation and field of view.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CameraParams {
+    /// Perspective, equirectangular or fisheye.
     pub kind: CameraKind,
     /// Perspective: horizontal field of view; fisheye: full field of view; degrees.
     pub fov_deg: f64,
@@ -184,13 +190,17 @@ pub const MAX_PIXELS: u64 = 16_384 * 8_192;
 /// not be read back from the scene a render embeds in its EXR.
 pub const MAX_SEED: u64 = i64::MAX as u64;
 
+/// How the image is rendered.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct RenderParams {
+    /// Image width, pixels.
     pub width: u32,
+    /// Image height, pixels.
     pub height: u32,
     /// Samples (camera paths) per pixel.
     pub spp: u32,
+    /// Seed of the random numbers (same seed, same image).
     pub seed: u64,
     /// Top-of-atmosphere irradiance of 1 W m⁻² nm⁻¹ at every wavelength.
     pub unit_sun: bool,
@@ -208,6 +218,7 @@ pub struct RenderParams {
     /// (unbiased: the sky is symmetric about that plane; see
     /// [`crate::render::film`]): about half the variance at no cost.
     pub mirror_symmetry: bool,
+    /// The technique switches (`[render.integrator]`).
     pub integrator: IntegratorOptions,
 }
 
@@ -232,10 +243,15 @@ impl Default for RenderParams {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize, Default)]
 #[serde(default, deny_unknown_fields)]
 pub struct Scene {
+    /// The sun's position.
     pub sun: Sun,
+    /// The observer's position.
     pub observer: ObserverPosition,
+    /// The camera.
     pub camera: CameraParams,
+    /// The atmosphere and the planet.
     pub atmosphere: AtmosphereParams,
+    /// How the image is rendered.
     pub render: RenderParams,
     /// What an EXR holds besides the RGB image (`[output]`).
     #[serde(skip_serializing_if = "OutputParams::is_plain")]
@@ -552,6 +568,7 @@ impl Scene {
         })
     }
 
+    /// The scene as TOML (the form `--scene` reads).
     pub fn to_toml(&self) -> String {
         toml::to_string_pretty(self).expect("a scene always serialises")
     }

@@ -233,8 +233,11 @@ const SURFACE_OFFSET_M: f64 = 1e-3;
 
 /// Everything the integrator needs about one scene.
 pub struct Integrator<'a> {
+    /// The medium the paths travel through.
     pub medium: &'a Medium,
+    /// The techniques to use.
     pub plan: &'a TechniquePlan,
+    /// Unit vector toward the sun's centre.
     pub sun_direction: DVec3,
     cos_sun_radius: f64,
     sun_solid_angle_sr: f64,
@@ -298,6 +301,7 @@ impl SegmentDensity for CachedRayDensity<'_> {
 }
 
 impl<'a> Integrator<'a> {
+    /// An integrator of `plan` in `medium` for the sun along `sun_direction`.
     pub fn new(medium: &'a Medium, plan: &'a TechniquePlan, sun_direction: DVec3) -> Self {
         Self {
             medium,
