@@ -507,3 +507,41 @@ fn no_work_log_numbering_in_the_sources_or_the_readme() {
     }
     assert!(found.is_empty(), "work-log references: {found:?}");
 }
+
+#[test]
+fn top_level_modules_import_only_layers_below() {
+    // The layers from the bottom up; a module may use its own layer and
+    // those below. The shells (cli, bench, app) share the top layer but
+    // not one another (checked above).
+    const LAYERS: [&[&str]; 10] = [
+        &["error", "data", "rng"],
+        &["physics"],
+        &["atmosphere", "spectrum"],
+        &["plan"],
+        &["scene"],
+        &["output"],
+        &["render"],
+        &["lighting"],
+        &["export"],
+        &["cli", "bench", "app"],
+    ];
+    let layer = |m: &str| LAYERS.iter().position(|l| l.contains(&m));
+    let graph = Graph::load();
+    let mut found = Vec::new();
+    for (from, to) in graph.edges() {
+        let Some(a) = from.first() else { continue };
+        for target in to {
+            let Some(b) = target.first() else { continue };
+            let (Some(la), Some(lb)) = (layer(a), layer(b)) else {
+                found.push(format!("{a} or {b} is in no layer"));
+                continue;
+            };
+            if lb > la {
+                found.push(format!("{} → {}", name(&from), name(&target)));
+            }
+        }
+    }
+    found.sort();
+    found.dedup();
+    assert!(found.is_empty(), "imports of a layer above: {found:?}");
+}
