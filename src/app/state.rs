@@ -69,12 +69,7 @@ impl ToneCurve {
                 }
                 rgb.map(|c| {
                     let v = (c * exposure_scale).clamp(0.0, 1.0);
-                    let encoded = if v <= 0.003_130_8 {
-                        12.92 * v
-                    } else {
-                        1.055 * v.powf(1.0 / 2.4) - 0.055
-                    };
-                    (encoded * 255.0 + 0.5) as u8
+                    crate::output::quantize_u8(crate::output::srgb_oetf(v))
                 })
             }
         }

@@ -644,7 +644,7 @@ fn aces_filmic(x: f32) -> f32 {
 }
 
 /// sRGB opto-electronic transfer function (IEC 61966-2-1), linear → encoded, for v in [0, 1].
-fn srgb_oetf(linear: f32) -> f32 {
+pub fn srgb_oetf(linear: f32) -> f32 {
     if linear <= 0.003_130_8 {
         12.92 * linear
     } else {
@@ -653,7 +653,7 @@ fn srgb_oetf(linear: f32) -> f32 {
 }
 
 /// Rounds an encoded value in [0, 1] to 8 bits (clamping; NaN gives 0).
-fn quantize_u8(encoded: f32) -> u8 {
+pub fn quantize_u8(encoded: f32) -> u8 {
     // `as` saturates and maps NaN to 0.
     (encoded.clamp(0.0, 1.0) * 255.0).round() as u8
 }
