@@ -11,7 +11,7 @@ use skyrender::render::control::RadianceTable;
 use skyrender::render::guide::SkyGuide;
 use skyrender::render::sunlight::CameraDensities;
 use skyrender::render::{
-    direction_from_az_el, Integrator, IntegratorOptions, Medium, SpectralLanes,
+    direction_from_az_el, Integrator, IntegratorOptions, Lanes, Medium, SpectralLanes,
     TransmittanceEstimator, LANES,
 };
 
@@ -34,7 +34,7 @@ use skyrender::rng::Rng;
 fn estimate(
     streams: u64,
     n: u32,
-    mut sample: impl FnMut(&mut Rng) -> [f64; LANES],
+    mut sample: impl FnMut(&mut Rng) -> Lanes,
 ) -> ([f64; LANES], [f64; LANES]) {
     let mut sum = [0.0; LANES];
     let mut sum2 = [0.0; LANES];

@@ -61,7 +61,7 @@ use super::camera::Camera;
 use super::columns::FixedStart;
 use super::guide::SkyGuide;
 use super::integrator::Integrator;
-use super::medium::{Medium, SpectralLanes, LANES};
+use super::medium::{Lanes, Medium, SpectralLanes, LANES};
 use crate::rng::Rng;
 
 pub use super::circle_geometry::SPLATS_PER_WALK;
@@ -263,7 +263,7 @@ impl CircleSplatter {
                     * (rho_max / TABLE_RHO_MIN_M).powf(i as f64 / (TABLE_RHO_BINS - 1) as f64)
             }))
             .collect();
-        let lanes = SpectralLanes::new([TABLE_WAVELENGTH_NM; LANES], 1, medium, true);
+        let lanes = SpectralLanes::new(Lanes::from([TABLE_WAVELENGTH_NM; LANES]), 1, medium, true);
         let observer = FixedStart::new(medium.column_table(), observer_m);
         let up = observer_m.normalize();
         let mass: Vec<f64> = (0..TABLE_RHO_BINS * TABLE_PHI_BINS)
@@ -528,7 +528,7 @@ impl CircleSplatter {
         let c = integrator.medium.coefficients(r, lanes);
         // Each direction's path estimate over its density, averaged over
         // all DIRECTIONS_PER_WALK draws (those that found nothing count).
-        let mut directions = [(DVec3::ZERO, [0.0; LANES]); DIRECTIONS_PER_WALK];
+        let mut directions = [(DVec3::ZERO, Lanes::splat(0.0)); DIRECTIONS_PER_WALK];
         let mut found = 0;
         for _ in 0..DIRECTIONS_PER_WALK {
             let Some((d, pdf, radiance)) = integrator.splat_walk(y0, &first_dirs, &c, lanes, rng)
@@ -583,7 +583,7 @@ impl CircleSplatter {
                 continue;
             };
             let weight = r * r * theta.sin() * per_sr / (t * t * point_density * position_density);
-            let mut in_scattered = [0.0; LANES];
+            let mut in_scattered = Lanes::splat(0.0);
             for (d, radiance) in directions {
                 let phases = integrator.scattering_phases(&c, lanes, cam_dir.dot(*d));
                 for (s, (p, l)) in in_scattered.iter_mut().zip(phases.iter().zip(radiance)) {

@@ -171,14 +171,20 @@ impl LaneTable {
             wavelengths_nm,
             active,
             medium,
-            &wavelengths_nm.map(|w| self.constants(w, medium)),
+            &wavelengths_nm.0.map(|w| self.constants(w, medium)),
         )
     }
 }
 
 impl SpectralLanes {
     /// The lanes for `wavelengths_nm`, `active` of them distinct, with the measured sun or (`unit_sun`) unit irradiance.
-    pub fn new(wavelengths_nm: Lanes, active: usize, medium: &Medium, unit_sun: bool) -> Self {
+    pub fn new(
+        wavelengths_nm: impl Into<Lanes>,
+        active: usize,
+        medium: &Medium,
+        unit_sun: bool,
+    ) -> Self {
+        let wavelengths_nm = wavelengths_nm.into();
         Self::with_source(
             wavelengths_nm,
             active,
@@ -198,7 +204,7 @@ impl SpectralLanes {
             wavelengths_nm,
             active,
             medium,
-            &wavelengths_nm.map(|w| lane_constants(w, medium, source)),
+            &wavelengths_nm.0.map(|w| lane_constants(w, medium, source)),
         )
     }
 
@@ -213,15 +219,15 @@ impl SpectralLanes {
             residuals: [0.0; SHELL_SLOTS],
             wavelengths_nm,
             active,
-            rayleigh_m2: [0.0; LANES],
-            rayleigh_gamma: [0.0; LANES],
-            ozone_max_m2: [0.0; LANES],
-            ozone_min_m2: [0.0; LANES],
+            rayleigh_m2: Lanes::splat(0.0),
+            rayleigh_gamma: Lanes::splat(0.0),
+            ozone_max_m2: Lanes::splat(0.0),
+            ozone_min_m2: Lanes::splat(0.0),
             ozone_m2: [[0.0; 11]; LANES],
-            aerosol_factor: [0.0; LANES],
-            aerosol_albedo: [0.0; LANES],
-            sun_irradiance: [0.0; LANES],
-            ground_albedo: [0.0; LANES],
+            aerosol_factor: Lanes::splat(0.0),
+            aerosol_albedo: Lanes::splat(0.0),
+            sun_irradiance: Lanes::splat(0.0),
+            ground_albedo: Lanes::splat(0.0),
             limb: [[0.0; sun::LIMB_COEFFICIENTS]; LANES],
         };
         for (j, c) in constants.iter().enumerate() {
@@ -264,7 +270,7 @@ mod tests {
         let mut rng = Rng::new(3, 4);
         let mut worst = 0.0_f64;
         for _ in 0..2_000 {
-            let w: Lanes = std::array::from_fn(|_| 360.0 + 470.0 * rng.uniform());
+            let w: Lanes = Lanes::from_fn(|_| 360.0 + 470.0 * rng.uniform());
             let a = table.lanes(w, LANES, &medium);
             let b = SpectralLanes::new(w, LANES, &medium, false);
             for j in 0..LANES {
@@ -283,8 +289,8 @@ mod tests {
         }
         assert!(worst < 1e-5, "worst relative difference {worst:e}");
         // Outside the table: the direct computation.
-        let out = table.lanes([1000.0; LANES], 1, &medium);
-        let direct = SpectralLanes::new([1000.0; LANES], 1, &medium, false);
+        let out = table.lanes(Lanes::splat(1000.0), 1, &medium);
+        let direct = SpectralLanes::new(Lanes::splat(1000.0), 1, &medium, false);
         assert_eq!(out.rayleigh_m2, direct.rayleigh_m2);
     }
 }

@@ -27,7 +27,7 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::medium::{SpectralLanes, LANES};
+use super::medium::{Lanes, SpectralLanes, LANES};
 use super::{solar_source, Renderer};
 use crate::spectrum::xyz_to_rec709;
 
@@ -131,7 +131,7 @@ impl Renderer {
             .map(|chunk| {
                 let mut w = [chunk[0]; LANES];
                 w[..chunk.len()].copy_from_slice(chunk);
-                SpectralLanes::with_source(w, chunk.len(), &self.medium, &source)
+                SpectralLanes::with_source(Lanes::from(w), chunk.len(), &self.medium, &source)
             })
             .collect()
     }

@@ -31,9 +31,8 @@ use crate::physics::rayleigh::Gas;
 use crate::physics::{aerosol, ozone, sun};
 pub use crate::plan::TransmittanceEstimator;
 
+pub use super::lane_values::Lanes;
 pub use crate::spectrum::LANES;
-/// One value per wavelength lane.
-pub type Lanes = [f64; LANES];
 
 /// Shell boundaries (altitude, m): thin near the ground where the density
 /// changes fastest in absolute terms, coarse high up where the whole shell's
@@ -311,7 +310,7 @@ impl SpectralLanes {
     /// [`Medium::coefficients`], ozone with the middle of the lane's
     /// cross-section range over temperature.
     pub(super) fn control(&self, densities: [f64; 3]) -> Lanes {
-        std::array::from_fn(|j| {
+        Lanes::from_fn(|j| {
             self.rayleigh_m2[j] * densities[0]
                 + self.aerosol_factor[j] * densities[1]
                 + 0.5 * (self.ozone_max_m2[j] + self.ozone_min_m2[j]) * densities[2]
@@ -739,7 +738,8 @@ mod tests {
     fn cached_profiles_match_the_exact_physics() {
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
-        let lanes = SpectralLanes::new([450.0, 550.0, 650.0, 750.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([450.0, 550.0, 650.0, 750.0]), 4, &medium, false);
         for z in [0.0, 123.0, 1_777.0, 9_999.0, 22_345.0, 48_000.0, 77_000.0] {
             let c = medium.coefficients(medium.planet_radius_m + z, &lanes);
             for (j, &w) in lanes.wavelengths_nm.iter().enumerate() {
@@ -762,7 +762,8 @@ mod tests {
     #[test]
     fn shell_majorants_bound_the_medium_along_rays() {
         let medium = medium();
-        let lanes = SpectralLanes::new([400.0, 500.0, 600.0, 700.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([400.0, 500.0, 600.0, 700.0]), 4, &medium, false);
         let mut rng = Rng::new(1, 1);
         let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1_500.0);
         for i in 0..200 {

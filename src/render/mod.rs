@@ -22,6 +22,7 @@ pub mod film_layers;
 pub mod film_spectral;
 pub mod guide;
 pub mod integrator;
+pub mod lane_values;
 pub mod lanes;
 pub mod layers;
 pub mod medium;

@@ -5,7 +5,7 @@
 
 use rayon::prelude::*;
 
-use super::{direction_from_az_el, solar_source, Renderer, SpectralLanes, LANES};
+use super::{direction_from_az_el, solar_source, Lanes, Renderer, SpectralLanes, LANES};
 use crate::rng::Rng;
 
 /// One spectral radiance estimate with its Monte Carlo standard error.
@@ -79,24 +79,22 @@ impl Renderer {
                 let mut lane_wavelengths = [chunk[0]; LANES];
                 lane_wavelengths[..chunk.len()].copy_from_slice(chunk);
                 let lanes = SpectralLanes::with_source(
-                    lane_wavelengths,
+                    Lanes::from(lane_wavelengths),
                     chunk.len(),
                     &self.medium,
                     &source,
                 );
-                let mut sum = [0.0; LANES];
-                let mut sum2 = [0.0; LANES];
+                let mut sum = Lanes::splat(0.0);
+                let mut sum2 = Lanes::splat(0.0);
                 let mut discarded = [0u64; LANES];
                 for s in 0..samples {
                     let mut rng =
                         Rng::for_sample(self.scene.render.seed, u64::from(s), chunk_index as u64);
                     let path = integrator.light(self.observer_m, dir, &lanes, &mut rng);
-                    let l: [f64; LANES] = match light {
+                    let l: Lanes = match light {
                         ProbeLight::All => path.total,
                         ProbeLight::SunDisc => path.disc,
-                        ProbeLight::WithoutSunDisc => {
-                            std::array::from_fn(|j| path.total[j] - path.disc[j])
-                        }
+                        ProbeLight::WithoutSunDisc => path.total - path.disc,
                     };
                     for j in 0..LANES {
                         let v = if l[j].is_finite() && (signed || l[j] >= 0.0) {

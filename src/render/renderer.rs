@@ -249,8 +249,8 @@ impl Renderer {
     /// density and the lanes are stratified (Wilkie et al. 2014).
     pub(super) fn sample_lanes(&self, u0: f64) -> (SpectralLanes, Lanes) {
         let n = self.lanes_per_path();
-        let mut wavelengths = [0.0; LANES];
-        let mut pdfs = [0.0; LANES];
+        let mut wavelengths = Lanes::splat(0.0);
+        let mut pdfs = Lanes::splat(0.0);
         for k in 0..LANES {
             let (w, p) = self
                 .cmf

@@ -107,11 +107,11 @@ impl InScatterDistribution {
         let mut t = [0.0; MAX_SEGMENTS + 1];
         // Per segment: sunlight mass per lane, skylight mass per lane, and
         // the importance at its midpoint.
-        let mut sunlit = [[0.0; LANES]; MAX_SEGMENTS];
-        let mut skylit = [[0.0; LANES]; MAX_SEGMENTS];
+        let mut sunlit = [Lanes::splat(0.0); MAX_SEGMENTS];
+        let mut skylit = [Lanes::splat(0.0); MAX_SEGMENTS];
         let mut importance = [0.0; MAX_SEGMENTS];
         let mut n = 0;
-        let mut view_depth = [0.0; LANES];
+        let mut view_depth = Lanes::splat(0.0);
         t[0] = span.t_enter;
         'pieces: for (t0, t1) in medium.pieces(origin, dir, span) {
             let length = t1 - t0;
@@ -168,8 +168,8 @@ impl InScatterDistribution {
             return None;
         }
         // Normalise each lane's components; mix them with equal lane weights.
-        let mut sun_total = [0.0; LANES];
-        let mut sky_total = [0.0; LANES];
+        let mut sun_total = Lanes::splat(0.0);
+        let mut sky_total = Lanes::splat(0.0);
         for s in 0..n {
             for j in 0..active {
                 sun_total[j] += sunlit[s][j];
@@ -178,7 +178,7 @@ impl InScatterDistribution {
         }
         // The weighted part only where every lane's weighted total is
         // usable (positive, finite); else the plain component alone.
-        let mut weighted_total = [0.0; LANES];
+        let mut weighted_total = Lanes::splat(0.0);
         let mut weighted_share = weighting.map_or(0.0, |w| w.share.clamp(0.0, 1.0));
         if weighted_share > 0.0 {
             for s in 0..n {
@@ -445,7 +445,7 @@ impl DensityBuilder {
     pub fn new(medium: &Medium, sun_direction: DVec3) -> Self {
         Self {
             sun_direction,
-            lanes: SpectralLanes::new(CACHE_WAVELENGTHS_NM, LANES, medium, false),
+            lanes: SpectralLanes::new(Lanes::from(CACHE_WAVELENGTHS_NM), LANES, medium, false),
         }
     }
 
@@ -460,7 +460,7 @@ impl DensityBuilder {
     ) -> Option<InScatterDistribution> {
         let span = medium.span(origin_m, dir)?;
         let mu_sun = dir.dot(self.sun_direction);
-        let phase_rayleigh: Lanes = std::array::from_fn(|j| {
+        let phase_rayleigh: Lanes = Lanes::from_fn(|j| {
             crate::physics::rayleigh::phase(mu_sun, self.lanes.rayleigh_gamma[j])
         });
         let phase_aerosol = medium.aerosol_phase.eval(mu_sun);
@@ -600,7 +600,7 @@ mod tests {
         span: super::super::medium::Span,
         sample: impl Fn(f64) -> (f64, f64),
     ) -> (f64, f64) {
-        let lanes = SpectralLanes::new([450.0, 550.0, 650.0, 750.0], 4, medium, false);
+        let lanes = SpectralLanes::new(Lanes::from([450.0, 550.0, 650.0, 750.0]), 4, medium, false);
         let f = |t: f64| {
             medium
                 .coefficients((origin + dir * t).length(), &lanes)
@@ -665,7 +665,8 @@ mod tests {
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
         let columns = medium.sun_columns();
-        let lanes = SpectralLanes::new([450.0, 550.0, 650.0, 750.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([450.0, 550.0, 650.0, 750.0]), 4, &medium, false);
         let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 10.0);
         let dir = DVec3::new(0.8, 0.0, 0.6);
         let span = medium.span(origin, dir).unwrap();
@@ -677,7 +678,7 @@ mod tests {
             dir,
             span,
             DVec3::new(0.0, 0.6, 0.8),
-            &[0.06; LANES],
+            &Lanes::splat(0.06),
             0.1,
             None,
         )

@@ -163,6 +163,7 @@ impl Tracker<'_> {
 mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
+    use crate::render::medium::Lanes;
     use crate::render::transmittance::tests::test_rays;
 
     fn medium() -> Medium {
@@ -176,7 +177,8 @@ mod tests {
         // first collision from its distribution given that it does: both
         // checked against unforced trackers within 4 standard errors.
         let medium = medium();
-        let lanes = SpectralLanes::new([400.0, 500.0, 600.0, 700.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([400.0, 500.0, 600.0, 700.0]), 4, &medium, false);
         let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2_000.0);
         let n = 40_000;
         for el in [90.0_f64, 20.0, 3.0] {
@@ -226,7 +228,8 @@ mod tests {
         // grazing, into the ground and from orbit, with tight and global
         // bounds, from the span's start and from part-way along it.
         let medium = medium();
-        let lanes = SpectralLanes::new([400.0, 500.0, 600.0, 700.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([400.0, 500.0, 600.0, 700.0]), 4, &medium, false);
         for (origin, dir) in test_rays(&medium) {
             let span = medium.span(origin, dir).unwrap();
             for bounds in [Bounds::Tight, Bounds::Global] {

@@ -7,7 +7,7 @@
 use glam::DVec3;
 
 use super::columns::{ColumnTable, FixedStart, Profiles, RayColumns, MAX_EXPECTED_EVENTS};
-use super::medium::{Bounds, Lanes, Medium, Span, SpectralLanes, LANES};
+use super::medium::{Bounds, Lanes, Medium, Span, SpectralLanes};
 use crate::plan::TransmittanceEstimator;
 use crate::rng::Rng;
 
@@ -31,10 +31,10 @@ impl Medium {
         rng: &mut Rng,
     ) -> Lanes {
         let Some(span) = self.span(origin, dir) else {
-            return [1.0; LANES];
+            return Lanes::splat(1.0);
         };
         if span.hits_ground {
-            return [0.0; LANES];
+            return Lanes::splat(0.0);
         }
         match (estimator, bounds) {
             (TransmittanceEstimator::ResidualRatioTracking, Bounds::Tight) => self
@@ -57,7 +57,7 @@ impl Medium {
                     true,
                     rng,
                 )
-                .unwrap_or([0.0; LANES]),
+                .unwrap_or(Lanes::splat(0.0)),
         }
     }
 
@@ -73,7 +73,7 @@ impl Medium {
         rng: &mut Rng,
     ) -> Lanes {
         let mut walk = self.walk(origin, dir, span, Bounds::Tight);
-        let mut factors = [1.0; LANES];
+        let mut factors = Lanes::splat(1.0);
         let mut columns = [0.0; 3];
         let mut budget = -rng.uniform_open0().ln();
         while let Some(piece) = walk.next_piece(self) {
@@ -98,7 +98,7 @@ impl Medium {
             }
         }
         let depth = lanes.control(columns);
-        std::array::from_fn(|j| factors[j] * (-depth[j]).exp())
+        Lanes::from_fn(|j| factors[j] * (-depth[j]).exp())
     }
 
     /// The column table's transmittance estimate from `start` (the
@@ -158,7 +158,7 @@ impl Medium {
             }
         }
         let mut walk = self.walk(origin, dir, span, bounds);
-        let mut transmittance = [1.0; LANES];
+        let mut transmittance = Lanes::splat(1.0);
         let mut control_columns = [0.0; 3];
         let mut next_checkpoint = 0;
         let mut budget = -rng.uniform_open0().ln();
@@ -195,7 +195,7 @@ impl Medium {
                     let depth =
                         lanes.control(columns_at(checkpoints[next_checkpoint].0.max(piece.t0)));
                     checkpoints[next_checkpoint].1 =
-                        std::array::from_fn(|j| transmittance[j] * (-depth[j]).exp());
+                        Lanes::from_fn(|j| transmittance[j] * (-depth[j]).exp());
                     next_checkpoint += 1;
                 }
             };
@@ -227,8 +227,9 @@ impl Medium {
                             }
                         }
                         (_, chord) => {
-                            let control = chord
-                                .map_or([0.0; LANES], |chord| lanes.control(chord.at(radius2)));
+                            let control = chord.map_or(Lanes::splat(0.0), |chord| {
+                                lanes.control(chord.at(radius2))
+                            });
                             for (j, tr) in transmittance.iter_mut().enumerate() {
                                 *tr *= 1.0 - (c.extinction(j) - control[j]) / residual;
                             }
@@ -242,9 +243,9 @@ impl Medium {
                 && transmittance[..lanes.active].iter().all(|&v| v == 0.0)
             {
                 for c in &mut checkpoints[next_checkpoint..] {
-                    c.1 = [0.0; LANES];
+                    c.1 = Lanes::splat(0.0);
                 }
-                return Some([0.0; LANES]);
+                return Some(Lanes::splat(0.0));
             }
             if !to_end && next_checkpoint == checkpoints.len() {
                 return None;
@@ -254,9 +255,9 @@ impl Medium {
         let control_depth = lanes.control(control_columns);
         let end = std::array::from_fn(|j| transmittance[j] * (-control_depth[j]).exp());
         for c in &mut checkpoints[next_checkpoint..] {
-            c.1 = end;
+            c.1 = Lanes::from(end);
         }
-        Some(end)
+        Some(Lanes::from(end))
     }
 }
 
@@ -361,7 +362,7 @@ impl ColumnTable {
             start_columns: finite(start.columns(k, fz))?,
         };
         let ray = RayColumns::new(self, start.radius_m, mu0);
-        let mut point = [(t_m, [0.0; LANES])];
+        let mut point = [(t_m, Lanes::splat(0.0))];
         self.track(medium, &stretch, &ray, lanes, &mut point, None, rng);
         Some(point[0].1)
     }
@@ -401,9 +402,9 @@ impl ColumnTable {
             let (r, mu) = radius_and_cosine(origin, dir, t.clamp(t_start, t_stop));
             let end = ray.at(r, mu);
             let depth = lanes.control(std::array::from_fn(|p| start_columns[p] - end[p]));
-            std::array::from_fn(|j| factors[j] * (-depth[j]).exp())
+            Lanes::from_fn(|j| factors[j] * (-depth[j]).exp())
         };
-        let mut factors = [1.0; LANES];
+        let mut factors = Lanes::splat(1.0);
         let mut next_checkpoint = 0;
         let mut t = t_start;
         if rate > 0.0 {
@@ -433,7 +434,7 @@ impl ColumnTable {
             } else {
                 // At the top C̃ = 0 (V vanishes there, up to rounding).
                 let depth = lanes.control(start_columns);
-                std::array::from_fn(|j| factors[j] * (-depth[j]).exp())
+                Lanes::from_fn(|j| factors[j] * (-depth[j]).exp())
             }
         })
     }
@@ -470,6 +471,7 @@ pub(super) mod tests {
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
     use crate::render::columns::tests::table;
     use crate::render::columns::PROFILES;
+    use crate::render::medium::LANES;
 
     fn medium() -> Medium {
         Medium::new(&Atmosphere::new(AtmosphereParams::default()))
@@ -483,7 +485,8 @@ pub(super) mod tests {
         // the rate its stretch needs, which differs; its estimates are
         // checked against quadrature below.)
         let medium = medium();
-        let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([440.0, 520.0, 600.0, 680.0]), 4, &medium, false);
         let estimator = TransmittanceEstimator::ChordResidualRatioTracking;
         for (origin, dir) in test_rays(&medium) {
             let span = medium.span(origin, dir).unwrap();
@@ -493,7 +496,7 @@ pub(super) mod tests {
                 // random numbers, to the end or stopping after the last.
                 let pass = |to_end: bool| {
                     let mut checkpoints =
-                        [0.05, 0.2, 0.3].map(|f| (span.t_enter + f * length, [0.0; LANES]));
+                        [0.05, 0.2, 0.3].map(|f| (span.t_enter + f * length, Lanes::splat(0.0)));
                     medium.transmittance_along(
                         origin,
                         dir,
@@ -540,7 +543,7 @@ pub(super) mod tests {
         // ozone's cross-section follows temperature most).
         let medium = medium();
         for wavelengths in [[440.0, 520.0, 600.0, 680.0], [310.0, 330.0, 380.0, 1000.0]] {
-            let lanes = SpectralLanes::new(wavelengths, 4, &medium, false);
+            let lanes = SpectralLanes::new(Lanes::from(wavelengths), 4, &medium, false);
             for (origin, dir) in test_rays(&medium) {
                 let span = medium.span(origin, dir).unwrap();
                 let mut walk = medium.walk(origin, dir, span, Bounds::Tight);
@@ -619,7 +622,8 @@ pub(super) mod tests {
         // (`transmittance_along`, to the end — the top or the ground — or to
         // an in-scattering point only) with either.
         let medium = medium();
-        let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([440.0, 520.0, 600.0, 680.0]), 4, &medium, false);
         let mut rng = Rng::new(5, 5);
         let (medium, lanes) = (&medium, &lanes);
         for (origin, dir) in test_rays(medium) {
@@ -627,7 +631,7 @@ pub(super) mod tests {
             // Optical depth from the span's start to `t_stop`, 2000 midpoint
             // steps per shell piece.
             let depth_to = |t_stop: f64| {
-                let mut depth = [0.0; LANES];
+                let mut depth = Lanes::splat(0.0);
                 let mut walk = medium.walk(origin, dir, span, Bounds::Tight);
                 while let Some(piece) = walk.next_piece(medium) {
                     let (t0, t1) = (piece.t0, piece.t1.min(t_stop));
@@ -688,7 +692,7 @@ pub(super) mod tests {
             // in-scattering point).
             let to_checkpoint = |estimator| {
                 move |rng: &mut Rng| {
-                    let mut checkpoints = [(checkpoint, [0.0; LANES])];
+                    let mut checkpoints = [(checkpoint, Lanes::splat(0.0))];
                     assert!(pass(estimator, &mut checkpoints, false, rng).is_none());
                     checkpoints[0].1
                 }
@@ -730,7 +734,7 @@ pub(super) mod tests {
                 // alike (the table's mean from 400 000 samples agrees with the
                 // quadrature to 1e-5); with 40 000 all 8 pass.
                 let n = 40_000;
-                let (mut sum, mut sum2) = ([0.0; LANES], [0.0; LANES]);
+                let (mut sum, mut sum2) = (Lanes::splat(0.0), Lanes::splat(0.0));
                 for _ in 0..n {
                     let t = estimate(&mut rng);
                     for j in 0..LANES {
@@ -763,7 +767,8 @@ pub(super) mod tests {
         // within 4 standard errors.
         let atmosphere = Atmosphere::new(AtmosphereParams::default());
         let medium = Medium::new(&atmosphere);
-        let lanes = SpectralLanes::new([500.0, 400.0, 600.0, 700.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([500.0, 400.0, 600.0, 700.0]), 4, &medium, false);
         let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m);
         let dir = DVec3::new(0.6, 0.0, 0.8);
         for estimator in [
@@ -806,7 +811,8 @@ pub(super) mod tests {
         // not the walk through the shells, but for grazing ones low down.
         let medium = medium();
         let table = table(&medium);
-        let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([440.0, 520.0, 600.0, 680.0]), 4, &medium, false);
         let mut rng = Rng::new(9, 9);
         let (mut taken, mut all, mut steep_declined) = (0, 0, 0);
         for el_deg in [-5.0, -2.0, -0.5, 0.0, 0.5, 2.0, 5.0, 10.0, 30.0, 90.0] {
@@ -815,7 +821,7 @@ pub(super) mod tests {
             let dir = DVec3::new(el.cos(), 0.0, el.sin());
             let span = medium.span(origin, dir).unwrap();
             for t_m in [1e3_f64, 1e4, 5e4, 3e5] {
-                let mut checkpoints = [(t_m.min(span.t_exit), [0.0; LANES])];
+                let mut checkpoints = [(t_m.min(span.t_exit), Lanes::splat(0.0))];
                 let estimate = table.transmittance_along(
                     &medium,
                     origin,
@@ -854,7 +860,8 @@ pub(super) mod tests {
         // that start downward are declined.
         let medium = medium();
         let table = table(&medium);
-        let lanes = SpectralLanes::new([440.0, 520.0, 600.0, 680.0], 4, &medium, false);
+        let lanes =
+            SpectralLanes::new(Lanes::from([440.0, 520.0, 600.0, 680.0]), 4, &medium, false);
         let mut compared = 0;
         for altitude_m in [2.0, 1500.0, 30_000.0] {
             let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + altitude_m);
@@ -880,7 +887,7 @@ pub(super) mod tests {
                 );
                 for t_m in [500.0, 2e4, 1.5e5] {
                     let t_m = f64::min(t_m, span.t_exit);
-                    let mut point = [(t_m, [0.0; LANES])];
+                    let mut point = [(t_m, Lanes::splat(0.0))];
                     let along = table.transmittance_along(
                         &medium,
                         origin,

@@ -3,7 +3,7 @@
 //! goes on as.
 
 use super::{
-    Branches, CameraDensities, DVec3, Integrator, Light, Rng, Segment, SpectralLanes, LANES,
+    Branches, CameraDensities, DVec3, Integrator, Lanes, Light, Rng, Segment, SpectralLanes,
     MAX_BRANCHES, MAX_SUNLIGHT_SAMPLES,
 };
 
@@ -21,7 +21,7 @@ impl Integrator<'_> {
         rng: &mut Rng,
     ) -> Branches {
         let origin = camera.origin_m();
-        let beta = [1.0; LANES];
+        let beta = Lanes::splat(1.0);
         let Some(span) = self.medium.span(origin, dir) else {
             self.add_sun_disc(dir, 0, &beta, lanes, radiance);
             return [None; MAX_BRANCHES];

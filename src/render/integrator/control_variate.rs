@@ -82,7 +82,7 @@ impl<'a> Integrator<'a> {
         let sets: Vec<SpectralLanes> = (0..NODES.div_ceil(LANES))
             .map(|set| {
                 let nm = std::array::from_fn(|j| table.node_nm((set * LANES + j).min(NODES - 1)));
-                SpectralLanes::new(nm, LANES, self.medium, true)
+                SpectralLanes::new(Lanes::from(nm), LANES, self.medium, true)
             })
             .collect();
         let mut coefficients = [[0.0; COEFFICIENTS]; NODES];
@@ -96,9 +96,15 @@ impl<'a> Integrator<'a> {
                     let mut radiance = Light::default();
                     let from = (origin, dir, 1, 1.0);
                     if plan.segments.sunlight_samples > 0 && single.guide.is_some() {
-                        single.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
+                        single.trace_sunlit(
+                            from,
+                            Lanes::splat(1.0),
+                            lanes,
+                            &mut radiance,
+                            &mut rng,
+                        );
                     } else {
-                        single.trace(from, [1.0; LANES], lanes, &mut radiance, &mut rng);
+                        single.trace(from, Lanes::splat(1.0), lanes, &mut radiance, &mut rng);
                     }
                     for (j, l) in radiance.total.iter().enumerate() {
                         let n = set * LANES + j;

@@ -3,7 +3,7 @@
 
 use super::{
     cosine_sample_hemisphere, ground_point, DVec3, Integrator, Lanes, Light, Rng, SpectralLanes,
-    Vertex, LANES, PI,
+    Vertex, PI,
 };
 
 impl Integrator<'_> {
@@ -28,7 +28,7 @@ impl Integrator<'_> {
         Some((
             ground_point(self.medium, normal),
             cosine_sample_hemisphere(normal, rng),
-            std::array::from_fn(|j| beta[j] * lanes.ground_albedo[j]),
+            Lanes::from_fn(|j| beta[j] * lanes.ground_albedo[j]),
         ))
     }
 
@@ -52,9 +52,7 @@ impl Integrator<'_> {
             if cos > 0.0 {
                 let tr = self.shadow(x, to_sun, lanes, rng);
                 let e_sun = self.sun_irradiance_toward(to_sun, lanes);
-                for j in 0..LANES {
-                    radiance[j] += beta[j] * lanes.ground_albedo[j] / PI * cos * e_sun[j] * tr[j];
-                }
+                radiance.total += *beta * lanes.ground_albedo / PI * cos * e_sun * tr;
             }
         }
     }

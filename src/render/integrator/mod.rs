@@ -265,10 +265,8 @@ impl ControlAt<'_> {
     /// Subtracts beta × A(dir): the path going on along `dir` from this
     /// point with weight `beta` now estimates L − A.
     fn subtract(&self, lanes: &SpectralLanes, dir: DVec3, beta: &Lanes, radiance: &mut Lanes) {
-        let a = self.picked.evaluate(&self.frame.basis(dir));
-        for j in 0..LANES {
-            radiance[j] -= beta[j] * lanes.sun_irradiance[j] * a[j];
-        }
+        let a = Lanes::from(self.picked.evaluate(&self.frame.basis(dir)));
+        *radiance -= *beta * lanes.sun_irradiance * a;
     }
 }
 
@@ -386,7 +384,7 @@ impl<'a> Integrator<'a> {
         mu: f64,
     ) -> Lanes {
         let aerosol = self.medium.aerosol_phase.eval(mu);
-        std::array::from_fn(|j| {
+        Lanes::from_fn(|j| {
             if j < lanes.active {
                 lane_scattering_phase(c, lanes, j, mu, aerosol)
             } else {
@@ -435,11 +433,11 @@ impl<'a> Integrator<'a> {
             }
             _ if opts.segments.sunlight_samples > 0 && opts.segments.next_event_estimation => {
                 let from = (origin, dir, 0, 1.0);
-                self.trace_sunlit(from, [1.0; LANES], lanes, &mut radiance, rng);
+                self.trace_sunlit(from, Lanes::splat(1.0), lanes, &mut radiance, rng);
             }
             _ => self.trace(
                 (origin, dir, 0, 1.0),
-                [1.0; LANES],
+                Lanes::splat(1.0),
                 lanes,
                 &mut radiance,
                 rng,
@@ -497,9 +495,9 @@ impl<'a> Integrator<'a> {
         let mut radiance = Light::default();
         let start = (x, dir, 1, 1.0);
         if opts.segments.sunlight_samples > 0 {
-            self.trace_sunlit(start, [1.0; LANES], lanes, &mut radiance, rng);
+            self.trace_sunlit(start, Lanes::splat(1.0), lanes, &mut radiance, rng);
         } else {
-            self.trace(start, [1.0; LANES], lanes, &mut radiance, rng);
+            self.trace(start, Lanes::splat(1.0), lanes, &mut radiance, rng);
         }
         Some((dir, pdf, radiance.total))
     }
@@ -542,7 +540,7 @@ impl<'a> Integrator<'a> {
         if span.hits_ground && span.t_exit < t_m {
             return None;
         }
-        let mut points = [(t_m.clamp(span.t_enter, span.t_exit), [0.0; LANES])];
+        let mut points = [(t_m.clamp(span.t_enter, span.t_exit), Lanes::splat(0.0))];
         self.medium.transmittance_along(
             origin,
             dir,
@@ -589,12 +587,10 @@ impl<'a> Integrator<'a> {
         radiance: &mut Light,
     ) {
         if dir.dot(self.sun_direction) >= self.cos_sun_radius {
-            let l_sun = self.sun_radiance(dir, lanes);
-            for j in 0..LANES {
-                radiance.total[j] += beta[j] * l_sun[j];
-                if depth == 0 {
-                    radiance.disc[j] += beta[j] * l_sun[j];
-                }
+            let seen = *beta * self.sun_radiance(dir, lanes);
+            radiance.total += seen;
+            if depth == 0 {
+                radiance.disc += seen;
             }
         }
     }
@@ -670,12 +666,8 @@ impl<'a> Integrator<'a> {
                         let mu = dir.dot(to_sun);
                         let tr = self.shadow(x, to_sun, lanes, rng);
                         let e_sun = self.sun_irradiance_toward(to_sun, lanes);
-                        for j in 0..LANES {
-                            radiance[j] += beta[j] * self.scattering_phase(&c, lanes, j, mu)
-                                / majorant
-                                * e_sun[j]
-                                * tr[j];
-                        }
+                        let phase = Lanes::from_fn(|j| self.scattering_phase(&c, lanes, j, mu));
+                        radiance.total += beta * phase / majorant * e_sun * tr;
                     }
                     if depth + 1 >= max_order {
                         // Only lower orders wanted: continue as if null.
@@ -861,7 +853,12 @@ mod tests {
             ..IntegratorOptions::default()
         });
         let integrator = Integrator::new(&medium, &plan, sun).with_sky_guide(&guide);
-        let lanes = SpectralLanes::new([450.0, 520.0, 590.0, 660.0], LANES, &medium, false);
+        let lanes = SpectralLanes::new(
+            Lanes::from([450.0, 520.0, 590.0, 660.0]),
+            LANES,
+            &medium,
+            false,
+        );
         let x = DVec3::new(0.0, 0.0, medium.planet_radius_m + 20_000.0);
         let c = medium.coefficients(x.length(), &lanes);
         let here = integrator
@@ -870,7 +867,7 @@ mod tests {
         let sigma = (0..LANES).map(|j| c.scattering(j)).fold(0.0, f64::max);
         let mut rng = Rng::new(1, 2);
         // Weights for a given expected light relative to a reference of 1.
-        let beta_for = |expected: f64| [expected / (sigma * here); LANES];
+        let beta_for = |expected: f64| Lanes::splat(expected / (sigma * here));
         let start = |reference: f64| Window {
             reference,
             copies: 1,

@@ -6,8 +6,8 @@ use super::{
     cosine_sample_hemisphere, ground_point, rayleigh, real_scattering, survives_roulette, Branches,
     Component, ControlAt, DVec3, GuideAt, InScatterDistribution, Integrator, Lanes, Light, Next,
     Rng, Segment, SegmentDensity, Span, SpectralLanes, Start, Vertex, Window, DIRECTION_UNIFORMS,
-    LANES, MAX_BRANCHES, MAX_COPIES, MAX_SPLIT, MAX_SUNLIGHT_SAMPLES, ROULETTE_CAP_DEPTH,
-    ROULETTE_WEIGHT, SPLIT_WEIGHT,
+    MAX_BRANCHES, MAX_COPIES, MAX_SPLIT, MAX_SUNLIGHT_SAMPLES, ROULETTE_CAP_DEPTH, ROULETTE_WEIGHT,
+    SPLIT_WEIGHT,
 };
 
 impl<'a> Integrator<'a> {
@@ -254,7 +254,7 @@ impl<'a> Integrator<'a> {
         }
         let mu_sun = dir.dot(self.sun_direction);
         let phase_rayleigh: Lanes =
-            std::array::from_fn(|j| rayleigh::phase(mu_sun, lanes.rayleigh_gamma[j]));
+            Lanes::from_fn(|j| rayleigh::phase(mu_sun, lanes.rayleigh_gamma[j]));
         let phase_aerosol = self.medium.aerosol_phase.eval(mu_sun);
         let distribution = InScatterDistribution::new(
             self.medium,
@@ -359,7 +359,7 @@ impl<'a> Integrator<'a> {
             *u = rng.uniform();
         }
         samples[..m].sort_by(|a, b| a.0.total_cmp(&b.0));
-        let mut points = [(0.0, [0.0; LANES]); MAX_SUNLIGHT_SAMPLES + MAX_BRANCHES];
+        let mut points = [(0.0, Lanes::splat(0.0)); MAX_SUNLIGHT_SAMPLES + MAX_BRANCHES];
         for (point, sample) in points.iter_mut().zip(&samples[..m]) {
             point.0 = sample.0;
         }
@@ -392,14 +392,13 @@ impl<'a> Integrator<'a> {
                     self.sample_scatter_direction(x, dir, &c, lanes, rng)
                 });
                 let mu = dir.dot(new_dir);
-                let new_beta = std::array::from_fn(|j| {
+                let new_beta = Lanes::from_fn(|j| {
                     share * beta[j] * tr_view[j] * self.scattering_phase(&c, lanes, j, mu)
                         / (density * pdf * p_medium)
                 });
                 if let Some(at) = self.control_at(x, lanes, rng) {
-                    let scale: Lanes = std::array::from_fn(|j| {
-                        share * beta[j] * tr_view[j] / (density * p_medium)
-                    });
+                    let scale: Lanes =
+                        Lanes::from_fn(|j| share * beta[j] * tr_view[j] / (density * p_medium));
                     self.control_in(&at, &c, lanes, dir, &scale, radiance);
                     at.subtract(lanes, new_dir, &new_beta, radiance);
                 }
@@ -411,27 +410,21 @@ impl<'a> Integrator<'a> {
             let tr_sun = self.shadow(x, to_sun, lanes, rng);
             let weight = 1.0 / (n as f64 * density);
             let e_sun = self.sun_irradiance_toward(to_sun, lanes);
-            for j in 0..LANES {
-                radiance[j] += beta[j]
-                    * tr_view[j]
-                    * weight
-                    * self.scattering_phase(&c, lanes, j, mu)
-                    * e_sun[j]
-                    * tr_sun[j];
-            }
+            let phase = Lanes::from_fn(|j| self.scattering_phase(&c, lanes, j, mu));
+            radiance.total += *beta * tr_view * weight * phase * e_sun * tr_sun;
         }
         // What lies at the end (only where the pass went there).
         let Some(tr_end) = tr_end else {
             return next;
         };
-        let through: Lanes = std::array::from_fn(|j| beta[j] * tr_end[j]);
+        let through: Lanes = Lanes::from_fn(|j| beta[j] * tr_end[j]);
         if span.hits_ground {
             let normal = (origin + dir * span.t_exit).normalize();
             self.ground_direct(normal, depth, &through, lanes, radiance, rng);
             if ground_goes_on {
                 // Each ground branch bounces on its own (see `ground_vertex`).
                 let x = ground_point(self.medium, normal);
-                let weight: Lanes = std::array::from_fn(|j| {
+                let weight: Lanes = Lanes::from_fn(|j| {
                     through[j] * lanes.ground_albedo[j] * share / (1.0 - p_medium)
                 });
                 for ((slot, _), u) in next[..branches]
@@ -543,7 +536,7 @@ impl<'a> Integrator<'a> {
         Some(Next::Vertex((
             ground_point(self.medium, normal),
             cosine_sample_hemisphere(normal, rng),
-            std::array::from_fn(|j| beta[j] * lanes.ground_albedo[j]),
+            Lanes::from_fn(|j| beta[j] * lanes.ground_albedo[j]),
         )))
     }
 

@@ -24,7 +24,7 @@ impl Integrator<'_> {
     /// unbiased; for a uniform disc the factor is exactly 1.
     pub(super) fn sun_irradiance_toward(&self, to_sun: DVec3, lanes: &SpectralLanes) -> Lanes {
         let mu = sun::disc_mu(to_sun.dot(self.sun_direction), self.cos_sun_radius);
-        std::array::from_fn(|j| lanes.sun_irradiance[j] * sun::polynomial(&lanes.limb[j], mu))
+        Lanes::from_fn(|j| lanes.sun_irradiance[j] * sun::polynomial(&lanes.limb[j], mu))
     }
 
     /// Solar radiance per lane along `dir`, a direction within the disc:
