@@ -34,3 +34,31 @@ pub fn show_number(value: f64) -> String {
         format!("{value:e}")
     }
 }
+
+/// A count within `lo..=hi`, or an error naming `parameter` and the range.
+pub fn check_count(parameter: &str, value: usize, lo: usize, hi: usize) -> Result<(), SceneError> {
+    if (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            parameter,
+            format!("{value} is outside the valid range {lo} to {hi}"),
+        ))
+    }
+}
+
+/// A value within `lo..=hi` (and finite), or an error naming `parameter`
+/// and the range.
+pub fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
+    if value.is_finite() && (lo..=hi).contains(&value) {
+        Ok(())
+    } else {
+        Err(SceneError::new(
+            parameter,
+            format!(
+                "{} is outside the valid range {lo} to {hi}",
+                show_number(value)
+            ),
+        ))
+    }
+}

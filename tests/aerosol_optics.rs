@@ -7,7 +7,7 @@ mod common;
 use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 
-use common::{assert_one_line_error, skyrender};
+use common::{assert_one_line_error, render_small, skyrender};
 use skyrender::physics::aerosol::henyey_greenstein;
 use skyrender::render::Renderer;
 use skyrender::Scene;
@@ -174,19 +174,7 @@ fn bad_phase_files_are_refused_naming_the_file_the_line_and_the_form() {
         )
         .unwrap();
         let image = dir.path().join("sky.exr");
-        let out = skyrender(&[
-            "render",
-            "--scene",
-            scene.to_str().unwrap(),
-            "--width",
-            "8",
-            "--height",
-            "4",
-            "--spp",
-            "1",
-            "-o",
-            image.to_str().unwrap(),
-        ]);
+        let out = render_small(&scene, &image);
         assert_one_line_error(
             &out,
             &[

@@ -1,20 +1,11 @@
 //! The command line: outputs, their metadata, and every kind of bad input.
 
+mod common;
+
+use common::{skyrender, stderr};
+
 use std::path::Path;
 use std::process::{Command, Output, Stdio};
-
-fn skyrender(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyrender"))
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("run skyrender")
-}
-
-fn stderr(out: &Output) -> String {
-    String::from_utf8_lossy(&out.stderr).into_owned()
-}
 
 /// The text of header attribute `key` of `image`'s first layer, if any (a
 /// non-text attribute as its debug form).

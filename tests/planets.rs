@@ -8,7 +8,7 @@ mod common;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use common::{assert_one_line_error, skyrender};
+use common::{assert_one_line_error, render_small, skyrender};
 use skyrender::physics::standard_atmosphere;
 use skyrender::render::Renderer;
 use skyrender::Scene;
@@ -138,19 +138,7 @@ fn a_bad_profile_is_one_error_naming_file_line_and_form() {
             &format!("[atmosphere]\nprofile = \"{name}\"\n"),
         );
         let image = dir.path().join(format!("{name}.exr"));
-        let out = skyrender(&[
-            "render",
-            "--scene",
-            scene.to_str().unwrap(),
-            "--width",
-            "8",
-            "--height",
-            "4",
-            "--spp",
-            "1",
-            "-o",
-            image.to_str().unwrap(),
-        ]);
+        let out = render_small(&scene, &image);
         assert_one_line_error(&out, &[name, line, "altitude_m", "temperature_k"]);
         assert!(!image.exists(), "{name}: an image was written");
     }

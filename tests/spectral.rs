@@ -3,8 +3,12 @@
 //! agreeing with the RGB one through the colour-matching functions; its
 //! memory; and bad input.
 
+mod common;
+
+use common::{skyrender, skyrender_ok};
+
 use std::path::Path;
-use std::process::{Command, Output};
+use std::process::Command;
 use std::sync::atomic::AtomicBool;
 
 use skyrender::output::channels::read_exr_channels;
@@ -13,15 +17,6 @@ use skyrender::render::film_spectral::{band_centres_nm, band_width_nm, DEFAULT_S
 use skyrender::render::Renderer;
 use skyrender::scene::Scene;
 use skyrender::spectrum::{xyz_to_rec709, ColourMatching, K_M};
-
-fn skyrender(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyrender"))
-        .args(args)
-        .env_remove("DISPLAY")
-        .env_remove("WAYLAND_DISPLAY")
-        .output()
-        .expect("run skyrender")
-}
 
 /// A tiny sunset: circle splats, mirror pairs and the adaptive plan on,
 /// so every path into the film is in the test.
@@ -107,7 +102,7 @@ fn the_spectral_image_integrates_to_the_rgb_image() {
 fn the_file_has_the_jcgt_layout_for_exrheader() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("s.exr");
-    let out = skyrender(&[
+    skyrender_ok(&[
         "render",
         "--preset",
         "midday",
@@ -123,11 +118,6 @@ fn the_file_has_the_jcgt_layout_for_exrheader() {
         "-o",
         path.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     // 94 bands of 5 nm: centres 362.5 … 827.5 nm.
     let file = read_exr_channels(&path).unwrap();
     assert!(file.channels.contains_key("S0.362,500000nm"));

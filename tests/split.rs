@@ -4,18 +4,9 @@
 
 mod common;
 
-use common::skyrender;
+use common::{skyrender, skyrender_ok};
 
 use std::path::{Path, PathBuf};
-
-fn run_ok(args: &[&str]) {
-    let out = skyrender(args);
-    assert!(
-        out.status.success(),
-        "{args:?}: {}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-}
 
 /// The luminance (cd/m²) of every pixel of an RGB EXR, row-major.
 fn luminance(path: &Path) -> Vec<f64> {
@@ -24,7 +15,7 @@ fn luminance(path: &Path) -> Vec<f64> {
 
 fn render(dir: &Path, name: &str, scene: &[&str], extra: &[&str]) -> PathBuf {
     let path = dir.join(name);
-    run_ok(&[&["render"], scene, extra, &["-o", path.to_str().unwrap()]].concat());
+    skyrender_ok(&[&["render"], scene, extra, &["-o", path.to_str().unwrap()]].concat());
     path
 }
 
@@ -33,7 +24,7 @@ fn merge(dir: &Path, parts: &[PathBuf], name: &str) -> PathBuf {
     let mut args = vec!["merge".to_owned()];
     args.extend(parts.iter().map(|p| p.to_str().unwrap().to_owned()));
     args.extend(["-o".to_owned(), path.to_str().unwrap().to_owned()]);
-    run_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
+    skyrender_ok(&args.iter().map(String::as_str).collect::<Vec<_>>());
     path
 }
 

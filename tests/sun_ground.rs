@@ -2,22 +2,18 @@
 //! darkening (`[atmosphere] ground_albedo_spectrum`, `[sun] spectrum`,
 //! `[sun] limb_darkening`).
 
+mod common;
+
+use common::{render_small, skyrender_ok};
+
 use std::fmt::Write as _;
 use std::path::Path;
-use std::process::{Command, Output};
 
 use skyrender::physics::sun;
 use skyrender::render::Renderer;
 use skyrender::scene::Scene;
 
 use skyrender::output::channels::read_exr_channels;
-
-fn skyrender(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_skyrender"))
-        .args(args)
-        .output()
-        .expect("skyrender runs")
-}
 
 /// A scene in folder `dir` from `toml`, loaded as its file would be.
 fn scene_in(dir: &Path, toml: &str) -> Scene {
@@ -177,19 +173,7 @@ fn bad_spectrum_files_are_refused_with_nothing_written() {
             }
             let scene_path = dir.path().join("bad.toml");
             std::fs::write(&scene_path, scene).unwrap();
-            let out = skyrender(&[
-                "render",
-                "--scene",
-                scene_path.to_str().unwrap(),
-                "--width",
-                "8",
-                "--height",
-                "4",
-                "--spp",
-                "1",
-                "-o",
-                out_path.to_str().unwrap(),
-            ]);
+            let out = render_small(&scene_path, &out_path);
             let stderr = String::from_utf8_lossy(&out.stderr);
             assert!(!out.status.success(), "{key} {file}");
             assert!(
@@ -253,7 +237,7 @@ fn a_zoomed_render_shows_the_limb_darker_and_redder() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("sun.exr");
     let (size, fov_deg) = (64usize, 1.0_f64);
-    let out = skyrender(&[
+    skyrender_ok(&[
         "render",
         "--limb-darkening",
         "--sun-elevation",
@@ -280,11 +264,6 @@ fn a_zoomed_render_shows_the_limb_darker_and_redder() {
         "-o",
         path.to_str().unwrap(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
     let file = read_exr_channels(&path).unwrap();
     // Pixel (column, row) spans the tangent plane's square
     // [x0, x0 + h] × [y0, y0 + h], h = 2 tan(fov/2)/size.

@@ -223,13 +223,19 @@ impl AppState {
             None => self.sun_mode = SunMode::Manual,
         }
         self.date_place_error = None;
+        self.adopt(scene);
+        true
+    }
+
+    /// Makes `scene` the current one: its atmosphere profile's own ozone
+    /// column (what the ozone slider's "Profile" returns to) and a restart.
+    fn adopt(&mut self, scene: Scene) {
         let mut params = scene.atmosphere.clone();
         params.ozone = true;
         params.ozone_du = None;
         self.profile_ozone_du = Atmosphere::new(params).ozone_column_du();
         self.scene = scene;
         self.dirty = true;
-        true
     }
 
     /// The scene's planet.
@@ -249,12 +255,7 @@ impl AppState {
         if scene.sun.date_time.is_none() {
             self.sun_mode = SunMode::Manual;
         }
-        let mut params = scene.atmosphere.clone();
-        params.ozone = true;
-        params.ozone_du = None;
-        self.profile_ozone_du = Atmosphere::new(params).ozone_column_du();
-        self.scene = scene;
-        self.dirty = true;
+        self.adopt(scene);
     }
 
     /// Load a built-in preset by name.

@@ -9,14 +9,14 @@ use serde::{Deserialize, Serialize};
 
 mod optics;
 
-use optics::{check_range, elterman_column_340nm};
+use optics::elterman_column_340nm;
 pub use optics::{
     AerosolColumn, AerosolOptics, AerosolPhaseKind, AerosolProfileKind, AerosolSpectrum,
     AlbedoSpectrum, GroundAlbedo, AEROSOL_REFERENCE_NM, ANGSTROM_EXPONENT_RANGE,
     MAX_AEROSOL_OPTICAL_DEPTH, SCALE_HEIGHT_RANGE_M,
 };
 
-use crate::error::SceneError;
+use crate::error::{check_range, SceneError};
 use crate::physics::phase_table::PhaseTable;
 use crate::physics::planet::Planet;
 use crate::physics::profile::VerticalProfile;

@@ -6,7 +6,7 @@ use std::path::PathBuf;
 
 use serde::{Deserialize, Serialize};
 
-use crate::error::SceneError;
+use crate::error::{check_range, SceneError};
 use crate::physics::aerosol;
 use crate::physics::spectrum_file::Tabulated;
 
@@ -262,19 +262,4 @@ impl AerosolColumn {
 pub(super) fn elterman_column_340nm(top_m: f64) -> f64 {
     let profile = aerosol::Profile::get();
     profile.optical_depth_340nm(0.0) - profile.optical_depth_340nm(top_m)
-}
-
-/// A value within `lo..=hi`, or an error naming `parameter` and the range.
-pub(super) fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(SceneError::new(
-            parameter,
-            format!(
-                "{} is outside the valid range {lo} to {hi}",
-                crate::error::show_number(value)
-            ),
-        ))
-    }
 }

@@ -333,21 +333,10 @@ mod tests {
         for model in [PhaseModel::HenyeyGreenstein, PhaseModel::CornetteShanks] {
             for g in [0.0, 0.3, 0.7] {
                 let k: [f64; 7] = model.legendre_moments(g);
-                let n = 200_000_u32;
-                let mut q = [0.0; 7];
-                for i in 0..n {
-                    let mu = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(n);
-                    let w = 2.0 * PI * model.eval(mu, g) * 2.0 / f64::from(n);
-                    let (mut p0, mut p1) = (1.0, mu);
-                    q[0] += w;
-                    q[1] += w * mu;
-                    for (l, ql) in q.iter_mut().enumerate().skip(2) {
-                        let lf = l as f64;
-                        let p2 = ((2.0 * lf - 1.0) * mu * p1 - (lf - 1.0) * p0) / lf;
-                        *ql += w * p2;
-                        (p0, p1) = (p1, p2);
-                    }
-                }
+                let q: [f64; 7] = crate::physics::quadrature::legendre_moments_by_midpoints(
+                    |mu| model.eval(mu, g),
+                    200_000,
+                );
                 for l in 0..7 {
                     assert!(
                         (k[l] - q[l]).abs() < 1e-6,

@@ -19,6 +19,32 @@ pub fn simpson(a: f64, b: f64, panels: usize) -> impl Iterator<Item = (f64, f64)
     })
 }
 
+/// The Legendre moments k_l = 2π ∫ p(μ) P_l(μ) dμ, l = 0…N − 1, of the
+/// phase function `p` by the midpoint rule on `points` cosines (the
+/// Legendre polynomials by Bonnet's recursion): the reference the phase
+/// functions' closed-form moments are tested against.
+#[cfg(test)]
+pub(crate) fn legendre_moments_by_midpoints<const N: usize>(
+    p: impl Fn(f64) -> f64,
+    points: u32,
+) -> [f64; N] {
+    let mut q = [0.0; N];
+    for i in 0..points {
+        let mu = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(points);
+        let w = 2.0 * std::f64::consts::PI * p(mu) * 2.0 / f64::from(points);
+        let (mut p0, mut p1) = (1.0, mu);
+        q[0] += w;
+        q[1] += w * mu;
+        for (l, ql) in q.iter_mut().enumerate().skip(2) {
+            let lf = l as f64;
+            let p2 = ((2.0 * lf - 1.0) * mu * p1 - (lf - 1.0) * p0) / lf;
+            *ql += w * p2;
+            (p0, p1) = (p1, p2);
+        }
+    }
+    q
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -7,6 +7,7 @@ use std::path::Path;
 use serde::{Deserialize, Serialize};
 
 use crate::atmosphere::AtmosphereParams;
+use crate::error::{check_count, check_range};
 pub use crate::error::{show_number, SceneError};
 use crate::physics::planet::Planet;
 use crate::physics::solar_position::{self, SunPlacement};
@@ -326,31 +327,6 @@ fn key_at(text: &str, offset: usize) -> Option<String> {
 /// Largest scene file read: a scene is a few hundred bytes of TOML; a
 /// larger file is not one (`--scene /dev/urandom` would read for ever).
 pub const MAX_SCENE_FILE_BYTES: u64 = 1 << 20;
-
-/// A count within `lo..=hi`, or an error naming `parameter` and the range.
-fn check_count(parameter: &str, value: usize, lo: usize, hi: usize) -> Result<(), SceneError> {
-    if (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(SceneError::new(
-            parameter,
-            format!("{value} is outside the valid range {lo} to {hi}"),
-        ))
-    }
-}
-fn check_range(parameter: &str, value: f64, lo: f64, hi: f64) -> Result<(), SceneError> {
-    if value.is_finite() && (lo..=hi).contains(&value) {
-        Ok(())
-    } else {
-        Err(SceneError::new(
-            parameter,
-            format!(
-                "{} is outside the valid range {lo} to {hi}",
-                show_number(value)
-            ),
-        ))
-    }
-}
 
 /// Built-in presets, shipped as TOML in `assets/presets/`.
 pub const PRESETS: [(&str, &str); 8] = [

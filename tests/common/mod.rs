@@ -16,6 +16,32 @@ pub fn skyrender(args: &[&str]) -> Output {
         .expect("run skyrender")
 }
 
+/// Runs `skyrender` with `args` and checks that it succeeded (the
+/// failure's message is its standard error).
+pub fn skyrender_ok(args: &[&str]) -> Output {
+    let out = skyrender(args);
+    assert!(out.status.success(), "{args:?}: {}", stderr(&out));
+    out
+}
+
+/// Renders the scene file `scene` at 8×4 pixels, 1 sample per pixel, to
+/// `image`: enough to see whether a scene renders or is refused.
+pub fn render_small(scene: &std::path::Path, image: &std::path::Path) -> Output {
+    skyrender(&[
+        "render",
+        "--scene",
+        scene.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "4",
+        "--spp",
+        "1",
+        "-o",
+        image.to_str().unwrap(),
+    ])
+}
+
 /// The run's standard error as text.
 pub fn stderr(out: &Output) -> String {
     String::from_utf8_lossy(&out.stderr).into_owned()
