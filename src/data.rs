@@ -66,6 +66,12 @@ pub const ELTERMAN_TOTAL: &str = include_str!("../data/elterman1968_total_attenu
 /// Mars temperature and pressure against altitude: the Mars-GRAM 2005
 /// auxiliary profile of Justus, Duvall & Keller (2005), Table 1.
 pub const MARS_PROFILE: &str = include_str!("../data/mars_tes_phoenix_justus2005.csv");
+/// Martian dust's refractive index (Wolff et al.), 263–1000 nm.
+pub const MARS_DUST_REFRACTIVE_INDEX: &str =
+    include_str!("../data/mars_dust_refractive_index_wolff.csv");
+/// Martian dust's phase function, 360–840 nm, by Lorenz–Mie theory
+/// (`physics::planet::mars_dust::mie_phase`).
+pub const MARS_DUST_PHASE: &str = include_str!("../data/mars_dust_phase_mie.csv");
 
 /// Lawn grass GDS91 (green), USGS Spectral Library 7, 360–830 nm / 5 nm.
 pub const GROUND_GRASS: &str = include_str!("../data/ground_grass.csv");

@@ -358,3 +358,66 @@ fn a_double_henyey_greenstein_renders_as_its_table() {
         }
     }
 }
+
+#[test]
+fn a_phase_table_over_wavelength_renders_each_wavelength_with_its_blend() {
+    // Henyey–Greenstein g = 0.5 at 360 nm, 0.75 at 550 nm and 0.85 at
+    // 830 nm in one file: a path carries 450 and 650 nm in its lanes, which
+    // draw directions from the lanes' average and weigh each lane by its
+    // own phase function (and, at sunset, integrate the control variate
+    // with each lane's moments). Each wavelength must come out as a scene
+    // whose one phase function is that wavelength's blend: at 450 nm
+    // (1 − w) HG(0.5) + w HG(0.75), w = 90/190; at 650 nm the blend of
+    // 0.75 and 0.85 with w = 100/280.
+    use std::fmt::Write as _;
+    let dir = tempfile::tempdir().unwrap();
+    let nodes = [(360.0, 0.5), (550.0, 0.75), (830.0, 0.85)];
+    let mut text = String::from("angle_deg,phase,wavelength_nm\n");
+    for (wavelength, g) in nodes {
+        for (angle, phase) in hg_rows(g, 0.5) {
+            writeln!(text, "{angle},{phase},{wavelength}").unwrap();
+        }
+    }
+    let spectral = dir.path().join("spectral.csv");
+    std::fs::write(&spectral, text).unwrap();
+    let blend = |(w0, g0): (f64, f64), (w1, g1): (f64, f64), at: f64, name: &str| {
+        let w = (at - w0) / (w1 - w0);
+        let rows: Vec<(f64, f64)> = hg_rows(g0, 0.5)
+            .into_iter()
+            .zip(hg_rows(g1, 0.5))
+            .map(|((angle, a), (_, b))| (angle, (1.0 - w) * a + w * b))
+            .collect();
+        write_table(dir.path(), name, &rows)
+    };
+    let at_450 = blend(nodes[0], nodes[1], 450.0, "blend450.csv");
+    let at_650 = blend(nodes[1], nodes[2], 650.0, "blend650.csv");
+    let phase = |file: &Path| format!("phase = \"table\"\nphase_file = \"{}\"", file.display());
+    for (elevation_deg, zenith_deg, azimuth_deg) in
+        [(30.0, 70.0, 180.0), (2.0, 80.0, 180.0), (2.0, 60.0, 0.0)]
+    {
+        let probe = |phase: &str, wavelengths: &[f64]| {
+            let renderer = Renderer::new(&hazy(elevation_deg, phase)).unwrap();
+            assert_eq!(renderer.plan().control_variate, elevation_deg < 3.0);
+            renderer.probe_radiance(zenith_deg, azimuth_deg, wavelengths, 20_000)
+        };
+        let both = probe(&phase(&spectral), &[450.0, 650.0]);
+        let one = [
+            probe(&phase(&at_450), &[450.0])[0],
+            probe(&phase(&at_650), &[650.0])[0],
+        ];
+        for (a, b) in both.iter().zip(&one) {
+            let se = a.std_error.hypot(b.std_error);
+            assert!(a.std_error < 0.02 * a.radiance, "too noisy to test: {a:?}");
+            assert!(
+                (a.radiance - b.radiance).abs() < 3.5 * se,
+                "sun {elevation_deg}°, view ({zenith_deg}°, {azimuth_deg}°), {} nm: \
+                 over wavelength {} ± {} vs its blend {} ± {}",
+                a.wavelength_nm,
+                a.radiance,
+                a.std_error,
+                b.radiance,
+                b.std_error
+            );
+        }
+    }
+}

@@ -17,10 +17,10 @@ pub use optics::{
 };
 
 use crate::error::{check_range, SceneError};
-use crate::physics::phase_table::PhaseTable;
 use crate::physics::planet::Planet;
 use crate::physics::profile::VerticalProfile;
 use crate::physics::rayleigh::Gas;
+use crate::physics::spectral_phase::SpectralPhaseTable;
 use crate::physics::spectrum_file::{self, Quantity, Tabulated};
 use crate::physics::{
     aerosol, ozone, standard_atmosphere, DEFAULT_ATMOSPHERE_TOP_M, DOBSON_UNIT_PER_M2,
@@ -117,10 +117,7 @@ impl AtmosphereParams {
                     )),
                     profile: Some(AerosolProfileKind::Exponential),
                     scale_height_m: Some(mars_dust::SCALE_HEIGHT_M),
-                    phase: Some(AerosolPhaseKind::DoubleHenyeyGreenstein),
-                    g1: Some(mars_dust::G1),
-                    g2: Some(mars_dust::G2),
-                    weight: Some(mars_dust::WEIGHT),
+                    phase: Some(AerosolPhaseKind::MarsDust),
                     ..AerosolOptics::default()
                 },
                 planet,
@@ -291,7 +288,7 @@ impl AtmosphereParams {
 
     /// The aerosol's phase function: `[atmosphere.aerosol] phase` with its
     /// parameters, else `aerosol_phase` with `aerosol_g`. A table is read
-    /// once per process ([`PhaseTable::cached`]); the error names the file,
+    /// once per process ([`SpectralPhaseTable::cached`]); the error names the file,
     /// the line and the valid form.
     pub fn aerosol_phase_function(&self) -> Result<aerosol::PhaseFunction, SceneError> {
         use aerosol::PhaseFunction as F;
@@ -318,13 +315,16 @@ impl AtmosphereParams {
                     weight: a.weight.ok_or_else(|| missing("weight", dhg))?,
                 }
             }
+            AerosolPhaseKind::MarsDust => {
+                F::Table(crate::physics::planet::mars_dust::phase_table())
+            }
             AerosolPhaseKind::Table => {
                 let path = a
                     .phase_file
                     .as_deref()
                     .ok_or_else(|| missing("phase_file", "table"))?;
                 F::Table(
-                    PhaseTable::cached(path)
+                    SpectralPhaseTable::cached(path)
                         .map_err(|e| SceneError::new("atmosphere.aerosol.phase_file", e))?,
                 )
             }

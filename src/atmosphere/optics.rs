@@ -32,8 +32,12 @@ pub enum AerosolPhaseKind {
     /// Double Henyey–Greenstein with `g1`, `g2` and `weight`
     /// ([`aerosol::double_henyey_greenstein`]).
     DoubleHenyeyGreenstein,
-    /// Tabulated in `phase_file` ([`crate::physics::phase_table::PhaseTable`]).
+    /// Tabulated in `phase_file`, at one wavelength or several
+    /// ([`crate::physics::spectral_phase::SpectralPhaseTable`]).
     Table,
+    /// The Martian dust's, over wavelength, by Lorenz–Mie theory
+    /// ([`crate::physics::planet::mars_dust::phase_table`]).
+    MarsDust,
 }
 
 /// Valid range of the Ångström exponent. Particles much smaller than the

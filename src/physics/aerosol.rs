@@ -17,7 +17,7 @@ use std::f64::consts::PI;
 use std::sync::{Arc, OnceLock};
 
 use crate::data::{self, Table};
-use crate::physics::phase_table::PhaseTable;
+use crate::physics::spectral_phase::SpectralPhaseTable;
 use crate::physics::{ozone, rayleigh, standard_atmosphere};
 
 /// Elterman's sea-level-to-50 km aerosol extinction at 340 nm, per level.
@@ -269,28 +269,37 @@ pub enum PhaseFunction {
         /// Weight of the first lobe, 0–1.
         weight: f64,
     },
-    /// Tabulated against the scattering angle ([`PhaseTable`]).
-    Table(Arc<PhaseTable>),
+    /// Tabulated against the scattering angle, at one wavelength or at
+    /// several ([`SpectralPhaseTable`]).
+    Table(Arc<SpectralPhaseTable>),
 }
 
+/// The wavelength at which [`PhaseFunction::mean_cosine`] reports a phase
+/// function that varies with wavelength, nm (that of aerosol optical
+/// depths, `optical_depth_550`).
+pub const MEAN_COSINE_REFERENCE_NM: f64 = 550.0;
+
 impl PhaseFunction {
-    /// Phase function per steradian; `mu` is the cosine between the
-    /// incident and scattered propagation directions.
-    pub fn eval(&self, mu: f64) -> f64 {
+    /// Phase function per steradian at `wavelength_nm`; `mu` is the cosine
+    /// between the incident and scattered propagation directions. Only a
+    /// table with wavelengths ([`Self::is_spectral`]) reads the wavelength.
+    pub fn eval(&self, mu: f64, wavelength_nm: f64) -> f64 {
         match self {
             Self::HenyeyGreenstein { g } => henyey_greenstein(mu, *g),
             Self::CornetteShanks { g } => cornette_shanks(mu, *g),
             Self::DoubleHenyeyGreenstein { g1, g2, weight } => {
                 double_henyey_greenstein(mu, *g1, *g2, *weight)
             }
-            Self::Table(table) => table.eval(mu),
+            Self::Table(table) => table.eval(mu, wavelength_nm),
         }
     }
 
-    /// A cosine drawn with density [`Self::eval`] (× 2π per unit μ): the
-    /// double Henyey–Greenstein by choosing its lobe with probability
-    /// `weight` (one uniform number), then sampling that lobe.
-    pub fn sample(&self, mut uniform: impl FnMut() -> f64) -> f64 {
+    /// A cosine drawn with density [`Self::eval`] at `wavelength_nm` (× 2π
+    /// per unit μ): the double Henyey–Greenstein by choosing its lobe with
+    /// probability `weight` (one uniform number), then sampling that lobe;
+    /// a table with wavelengths by choosing one of the two nodes it blends
+    /// ([`SpectralPhaseTable::sample`]).
+    pub fn sample(&self, wavelength_nm: f64, mut uniform: impl FnMut() -> f64) -> f64 {
         match self {
             Self::HenyeyGreenstein { g } => PhaseModel::HenyeyGreenstein.sample(*g, uniform),
             Self::CornetteShanks { g } => PhaseModel::CornetteShanks.sample(*g, uniform),
@@ -298,28 +307,91 @@ impl PhaseFunction {
                 let g = if uniform() < *weight { *g1 } else { *g2 };
                 sample_henyey_greenstein(uniform(), g)
             }
-            Self::Table(table) => table.sample(uniform()),
+            Self::Table(table) => table.sample(wavelength_nm, uniform),
         }
     }
 
-    /// Legendre moments k_l = 2π ∫ p(μ) P_l(μ) dμ, l = 0..N (see
-    /// [`PhaseModel::legendre_moments`]); the double Henyey–Greenstein's
-    /// are weight·g1^l + (1 − weight)·g2^l.
-    pub fn legendre_moments<const N: usize>(&self) -> [f64; N] {
+    /// Legendre moments k_l = 2π ∫ p(μ) P_l(μ) dμ, l = 0..N, at
+    /// `wavelength_nm` (see [`PhaseModel::legendre_moments`]); the double
+    /// Henyey–Greenstein's are weight·g1^l + (1 − weight)·g2^l.
+    pub fn legendre_moments<const N: usize>(&self, wavelength_nm: f64) -> [f64; N] {
         match self {
             Self::HenyeyGreenstein { g } => PhaseModel::HenyeyGreenstein.legendre_moments(*g),
             Self::CornetteShanks { g } => PhaseModel::CornetteShanks.legendre_moments(*g),
             Self::DoubleHenyeyGreenstein { g1, g2, weight } => std::array::from_fn(|l| {
                 weight * g1.powi(l as i32) + (1.0 - weight) * g2.powi(l as i32)
             }),
-            Self::Table(table) => table.legendre_moments(),
+            Self::Table(table) => table.legendre_moments(wavelength_nm),
+        }
+    }
+
+    /// Whether the phase function varies with wavelength.
+    pub fn is_spectral(&self) -> bool {
+        matches!(self, Self::Table(table) if table.is_spectral())
+    }
+
+    /// The wavelengths between which the phase function is linear, nm
+    /// (empty where it does not vary with wavelength): what a cache of
+    /// its moments over wavelength needs.
+    pub fn node_wavelengths_nm(&self) -> &[f64] {
+        match self {
+            Self::Table(table) => table.node_wavelengths_nm(),
+            _ => &[],
         }
     }
 
     /// The mean cosine of the scattering angle (the asymmetry parameter;
-    /// for Cornette–Shanks not its `g`).
+    /// for Cornette–Shanks not its `g`), at [`MEAN_COSINE_REFERENCE_NM`]
+    /// where it varies with wavelength.
     pub fn mean_cosine(&self) -> f64 {
-        self.legendre_moments::<2>()[1]
+        self.legendre_moments::<2>(MEAN_COSINE_REFERENCE_NM)[1]
+    }
+}
+
+/// A phase function's Legendre moments k_0..k_{N−1} over wavelength,
+/// computed once: at its nodes, blended linearly in between (exactly the
+/// moments of the blended phase function, [`SpectralPhaseTable`]); one
+/// set where it does not vary with wavelength.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MomentsOverWavelength<const N: usize> {
+    /// The nodes' wavelengths, nm (empty: one set for every wavelength).
+    wavelengths_nm: Vec<f64>,
+    /// The moments at each node (one set where there are no nodes).
+    moments: Vec<[f64; N]>,
+}
+
+impl<const N: usize> MomentsOverWavelength<N> {
+    /// The moments of `phase`.
+    pub fn new(phase: &PhaseFunction) -> Self {
+        let wavelengths_nm = phase.node_wavelengths_nm().to_vec();
+        let moments = if wavelengths_nm.is_empty() {
+            vec![phase.legendre_moments(MEAN_COSINE_REFERENCE_NM)]
+        } else {
+            wavelengths_nm
+                .iter()
+                .map(|&w| phase.legendre_moments(w))
+                .collect()
+        };
+        Self {
+            wavelengths_nm,
+            moments,
+        }
+    }
+
+    /// The moments at `wavelength_nm`.
+    pub fn at(&self, wavelength_nm: f64) -> [f64; N] {
+        let w = &self.wavelengths_nm;
+        let n = w.len();
+        if n == 0 || wavelength_nm.is_nan() || wavelength_nm <= w[0] {
+            return self.moments[0];
+        }
+        if wavelength_nm >= w[n - 1] {
+            return self.moments[n - 1];
+        }
+        let i = w.partition_point(|&x| x <= wavelength_nm) - 1;
+        let t = (wavelength_nm - w[i]) / (w[i + 1] - w[i]);
+        let (a, b) = (&self.moments[i], &self.moments[i + 1]);
+        std::array::from_fn(|l| (1.0 - t) * a[l] + t * b[l])
     }
 }
 
@@ -396,12 +468,12 @@ mod tests {
         // the moments w g1^l + (1 − w) g2^l against the same quadrature.
         for (g1, g2, weight) in [(0.8, -0.3, 0.9), (0.95, -0.6, 0.7), (0.5, 0.2, 0.0)] {
             let phase = PhaseFunction::DoubleHenyeyGreenstein { g1, g2, weight };
-            let k: [f64; 5] = phase.legendre_moments();
+            let k: [f64; 5] = phase.legendre_moments(550.0);
             let n = 200_000;
             let mut q = [0.0; 5];
             for i in 0..n {
                 let mu = -1.0 + 2.0 * (f64::from(i) + 0.5) / f64::from(n);
-                let w = 2.0 * PI * phase.eval(mu) * 2.0 / f64::from(n);
+                let w = 2.0 * PI * phase.eval(mu, 550.0) * 2.0 / f64::from(n);
                 let p2 = 0.5 * (3.0 * mu * mu - 1.0);
                 let p3 = 0.5 * (5.0 * mu * mu * mu - 3.0 * mu);
                 let p4 = (35.0 * mu.powi(4) - 30.0 * mu * mu + 3.0) / 8.0;
@@ -428,7 +500,9 @@ mod tests {
         };
         let mut rng = crate::rng::Rng::new(7, 8);
         let n = 200_000;
-        let samples: Vec<f64> = (0..n).map(|_| phase.sample(|| rng.uniform())).collect();
+        let samples: Vec<f64> = (0..n)
+            .map(|_| phase.sample(550.0, || rng.uniform()))
+            .collect();
         for (lo, hi) in [(0.9, 1.0), (-1.0, -0.5)] {
             let hits =
                 samples.iter().filter(|&&mu| mu > lo && mu <= hi).count() as f64 / f64::from(n);
@@ -436,7 +510,7 @@ mod tests {
             let expected: f64 = (0..m)
                 .map(|i| {
                     let mu = lo + (hi - lo) * (f64::from(i) + 0.5) / f64::from(m);
-                    2.0 * PI * phase.eval(mu) * (hi - lo) / f64::from(m)
+                    2.0 * PI * phase.eval(mu, 550.0) * (hi - lo) / f64::from(m)
                 })
                 .sum();
             let se = (expected * (1.0 - expected) / f64::from(n)).sqrt();

@@ -6,6 +6,7 @@
 
 pub mod aerosol;
 pub mod data_file;
+pub mod mie;
 pub mod ozone;
 pub mod phase_table;
 pub mod planet;
@@ -13,6 +14,7 @@ pub mod profile;
 pub mod quadrature;
 pub mod rayleigh;
 pub mod solar_position;
+pub mod spectral_phase;
 pub mod spectrum_file;
 pub mod standard_atmosphere;
 pub mod sun;

@@ -532,6 +532,17 @@ impl Medium {
         })
     }
 
+    /// The aerosol's phase function at cosine `mu` for each lane's
+    /// wavelength: evaluated once where it is the same at every
+    /// wavelength.
+    pub fn aerosol_phases(&self, mu: f64, lanes: &SpectralLanes) -> Lanes {
+        if self.aerosol_phase.is_spectral() {
+            Lanes::from_fn(|j| self.aerosol_phase.eval(mu, lanes.wavelengths_nm[j]))
+        } else {
+            Lanes::splat(self.aerosol_phase.eval(mu, lanes.wavelengths_nm[0]))
+        }
+    }
+
     /// Coefficients at distance `radius_m` from the planet's centre.
     #[inline]
     pub fn coefficients(&self, radius_m: f64, lanes: &SpectralLanes) -> Coefficients {

@@ -88,7 +88,8 @@ pub struct InScatterDistribution {
 impl InScatterDistribution {
     /// Builds the density for the ray `origin + t·dir` over `span`, for the
     /// sun along `sun_direction`; `phase_rayleigh` and `phase_aerosol` are the
-    /// lanes' phase functions at the (fixed) angle between ray and sun.
+    /// lanes' phase functions at the (fixed) angle between ray and sun
+    /// ([`Medium::aerosol_phases`]).
     /// Returns `None` when nothing along the ray scatters.
     #[allow(clippy::too_many_arguments)]
     pub fn new(
@@ -100,7 +101,7 @@ impl InScatterDistribution {
         span: super::medium::Span,
         sun_direction: DVec3,
         phase_rayleigh: &Lanes,
-        phase_aerosol: f64,
+        phase_aerosol: &Lanes,
         weighting: Option<Weighting<'_>>,
     ) -> Option<Self> {
         let active = lanes.active;
@@ -155,7 +156,7 @@ impl InScatterDistribution {
                     if let Some(columns) = columns {
                         let sun_depth = sun_optical_depth(lanes, j, columns);
                         sunlit[n][j] = (c.rayleigh[j] * phase_rayleigh[j]
-                            + c.aerosol_scattering[j] * phase_aerosol)
+                            + c.aerosol_scattering[j] * phase_aerosol[j])
                             * (-(view + sun_depth)).exp()
                             * (b - a);
                     }
@@ -463,7 +464,7 @@ impl DensityBuilder {
         let phase_rayleigh: Lanes = Lanes::from_fn(|j| {
             crate::physics::rayleigh::phase(mu_sun, self.lanes.rayleigh_gamma[j])
         });
-        let phase_aerosol = medium.aerosol_phase.eval(mu_sun);
+        let phase_aerosol = medium.aerosol_phases(mu_sun, &self.lanes);
         InScatterDistribution::new(
             medium,
             Some(medium.sun_columns()),
@@ -473,7 +474,7 @@ impl DensityBuilder {
             span,
             self.sun_direction,
             &phase_rayleigh,
-            phase_aerosol,
+            &phase_aerosol,
             weighting,
         )
     }
@@ -679,7 +680,7 @@ mod tests {
             span,
             DVec3::new(0.0, 0.6, 0.8),
             &Lanes::splat(0.06),
-            0.1,
+            &Lanes::splat(0.1),
             None,
         )
         .unwrap();

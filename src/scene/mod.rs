@@ -739,7 +739,7 @@ mod tests {
         assert_eq!(own.atmosphere.aerosol.optical_depth_550, Some(2.0));
         assert_eq!(
             own.atmosphere.aerosol.phase,
-            Some(AerosolPhaseKind::DoubleHenyeyGreenstein)
+            Some(AerosolPhaseKind::MarsDust)
         );
         // A phase of the scene's own takes none of the dust's parameters.
         let hg = Scene::from_toml(
@@ -747,7 +747,11 @@ mod tests {
              phase = \"henyey-greenstein\"\nasymmetry = 0.6\n",
         )
         .unwrap();
-        assert_eq!(hg.atmosphere.aerosol.g1, None);
+        assert_eq!(
+            hg.atmosphere.aerosol.phase,
+            Some(AerosolPhaseKind::HenyeyGreenstein)
+        );
+        assert_eq!(hg.atmosphere.aerosol.asymmetry, Some(0.6));
         // Round trip, and the Earth's scenes write no [planet].
         assert_eq!(Scene::from_toml(&own.to_toml()).unwrap(), own);
         assert!(!Scene::default().to_toml().contains("[planet]"));

@@ -45,6 +45,7 @@ impl<'a> Integrator<'a> {
             let rayleigh_k2 = rayleigh::phase_legendre_2(lanes.rayleigh_gamma[j]);
             let aerosol: f64 = self
                 .aerosol_moments
+                .at(lanes.wavelengths_nm[j])
                 .iter()
                 .zip(&degrees)
                 .map(|(k, d)| k * d[j])

@@ -121,12 +121,13 @@ use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, LANES};
 use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDistribution};
 use super::trig::sin_cos_turns;
+use crate::physics::aerosol::MomentsOverWavelength;
 use crate::physics::{rayleigh, sun};
 use crate::plan::{TechniquePlan, MAX_BRANCHES, MAX_FORCED_COLLISION_DEPTH, MAX_SUNLIGHT_SAMPLES};
 use crate::rng::Rng;
 
 /// σ_s,R P_R + σ_s,A P_A of lane `j` at cosine `mu`, given the aerosol's
-/// phase function there (the same for every lane).
+/// phase function there at the lane's wavelength.
 fn lane_scattering_phase(
     c: &super::medium::Coefficients,
     lanes: &SpectralLanes,
@@ -250,7 +251,7 @@ pub struct Integrator<'a> {
     /// than once in the air reaches the film through [`super::circles`].
     splatting: bool,
     /// The aerosol phase function's Legendre moments k_0..k_L.
-    aerosol_moments: [f64; L_MAX + 1],
+    aerosol_moments: MomentsOverWavelength<{ L_MAX + 1 }>,
 }
 
 /// The control variate at one scattering point: the point's frame and the
@@ -317,7 +318,7 @@ impl<'a> Integrator<'a> {
             guide: None,
             control: None,
             splatting: false,
-            aerosol_moments: medium.aerosol_phase.legendre_moments(),
+            aerosol_moments: MomentsOverWavelength::new(&medium.aerosol_phase),
         }
     }
 
@@ -371,22 +372,22 @@ impl<'a> Integrator<'a> {
         j: usize,
         mu: f64,
     ) -> f64 {
-        let aerosol = self.medium.aerosol_phase.eval(mu);
+        let aerosol = self.medium.aerosol_phase.eval(mu, lanes.wavelengths_nm[j]);
         lane_scattering_phase(c, lanes, j, mu, aerosol)
     }
 
     /// [`Self::scattering_phase`] of every lane (the aerosol's phase
-    /// function, the same for all, evaluated once); inactive lanes 0.
+    /// function by [`Medium::aerosol_phases`]); inactive lanes 0.
     pub(crate) fn scattering_phases(
         &self,
         c: &super::medium::Coefficients,
         lanes: &SpectralLanes,
         mu: f64,
     ) -> Lanes {
-        let aerosol = self.medium.aerosol_phase.eval(mu);
+        let aerosol = self.medium.aerosol_phases(mu, lanes);
         Lanes::from_fn(|j| {
             if j < lanes.active {
-                lane_scattering_phase(c, lanes, j, mu, aerosol)
+                lane_scattering_phase(c, lanes, j, mu, aerosol[j])
             } else {
                 0.0
             }

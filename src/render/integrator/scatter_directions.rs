@@ -106,7 +106,9 @@ impl<'a> Integrator<'a> {
         let mu = if rng.uniform() * c.scattering(k) < c.rayleigh[k] {
             rayleigh::sample_mu(rng.uniform(), lanes.rayleigh_gamma[k])
         } else {
-            self.medium.aerosol_phase.sample(|| rng.uniform())
+            self.medium
+                .aerosol_phase
+                .sample(lanes.wavelengths_nm[k], || rng.uniform())
         };
         let (sin_phi, cos_phi) = sin_cos_turns(rng.uniform());
         let sin = (1.0 - mu * mu).max(0.0).sqrt();

@@ -255,7 +255,7 @@ impl<'a> Integrator<'a> {
         let mu_sun = dir.dot(self.sun_direction);
         let phase_rayleigh: Lanes =
             Lanes::from_fn(|j| rayleigh::phase(mu_sun, lanes.rayleigh_gamma[j]));
-        let phase_aerosol = self.medium.aerosol_phase.eval(mu_sun);
+        let phase_aerosol = self.medium.aerosol_phases(mu_sun, lanes);
         let distribution = InScatterDistribution::new(
             self.medium,
             Some(self.medium.sun_columns()),
@@ -265,7 +265,7 @@ impl<'a> Integrator<'a> {
             span,
             self.sun_direction,
             &phase_rayleigh,
-            phase_aerosol,
+            &phase_aerosol,
             None,
         );
         let n = if distribution.is_some() { n } else { 0 };
