@@ -361,17 +361,17 @@ fn a_double_henyey_greenstein_renders_as_its_table() {
 
 #[test]
 fn a_phase_table_over_wavelength_renders_each_wavelength_with_its_blend() {
-    // Henyey–Greenstein g = 0.5 at 360 nm, 0.75 at 550 nm and 0.85 at
+    // Henyey–Greenstein g = 0.5 at 360 nm, 0.7 at 550 nm and 0.78 at
     // 830 nm in one file: a path carries 450 and 650 nm in its lanes, which
     // draw directions from the lanes' average and weigh each lane by its
     // own phase function (and, at sunset, integrate the control variate
     // with each lane's moments). Each wavelength must come out as a scene
     // whose one phase function is that wavelength's blend: at 450 nm
-    // (1 − w) HG(0.5) + w HG(0.75), w = 90/190; at 650 nm the blend of
-    // 0.75 and 0.85 with w = 100/280.
+    // (1 − w) HG(0.5) + w HG(0.7), w = 90/190; at 650 nm the blend of
+    // 0.7 and 0.78 with w = 100/280.
     use std::fmt::Write as _;
     let dir = tempfile::tempdir().unwrap();
-    let nodes = [(360.0, 0.5), (550.0, 0.75), (830.0, 0.85)];
+    let nodes = [(360.0, 0.5), (550.0, 0.7), (830.0, 0.78)];
     let mut text = String::from("angle_deg,phase,wavelength_nm\n");
     for (wavelength, g) in nodes {
         for (angle, phase) in hg_rows(g, 0.5) {

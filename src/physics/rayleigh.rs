@@ -265,6 +265,25 @@ mod tests {
         assert_eq!(Gas::Air.phase_gamma(500.0), phase_gamma(500.0));
     }
 
+    /// Against measurement: Sneep & Ubachs (2005), Table 2, at their laser
+    /// line 18 788.4 cm⁻¹ (532.24 nm): CO₂'s cavity ring-down cross-section
+    /// (12.4 ± 0.8) × 10⁻²⁷ cm², its n-based value 13.29 × 10⁻²⁷ cm² and
+    /// refractivity (n − 1) × 10⁶ = 427 at 15 °C (the table as quoted in a
+    /// public planetary renderer's tests; the paper itself was not read
+    /// here). He et al. (2021, *Atmos. Chem. Phys.* 21, 14927, abstract)
+    /// measure CO₂ from 307 to 725 nm at (0.4 ± 1.2) % from the n-based
+    /// cross-sections, so the formula stands for the measurement over the
+    /// rendered range within that.
+    #[test]
+    fn co2_cross_section_agrees_with_the_measured_one() {
+        let nm = 1e7 / 18_788.4;
+        let sigma_27 = co2::cross_section_m2(nm) * 1e4 * 1e27;
+        assert!((sigma_27 - 12.4).abs() < 1.5 * 0.8, "{sigma_27}");
+        assert!((sigma_27 / 13.29 - 1.0).abs() < 1e-3, "{sigma_27}");
+        let refractivity = co2::refractive_index_minus_one(nm) * 1e6;
+        assert!((refractivity - 427.0).abs() < 0.5, "{refractivity}");
+    }
+
     #[test]
     fn phase_function_integrates_to_one() {
         for gamma in [0.0, 0.014, 0.1] {
