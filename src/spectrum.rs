@@ -146,6 +146,12 @@ pub fn xyz_to_rec709(xyz: [f64; 3]) -> [f64; 3] {
     std::array::from_fn(|r| (0..3).map(|c| XYZ_TO_REC709[r][c] * xyz[c]).sum())
 }
 
+/// The luminance Y of a linear Rec.709 triple (the Y row of the inverse of
+/// [`XYZ_TO_REC709`], IEC 61966-2-1).
+pub fn rec709_luminance(rgb: [f64; 3]) -> f64 {
+    0.2126 * rgb[0] + 0.7152 * rgb[1] + 0.0722 * rgb[2]
+}
+
 /// Chromaticity (x, y) of an XYZ triple.
 pub fn chromaticity(xyz: [f64; 3]) -> (f64, f64) {
     let s = xyz[0] + xyz[1] + xyz[2];

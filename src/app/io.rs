@@ -412,6 +412,7 @@ mod tests {
             elapsed: Duration::ZERO,
             discarded: 0,
             finished: true,
+            model_weight: 0.0,
         }
     }
 

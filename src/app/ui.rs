@@ -917,6 +917,7 @@ mod tests {
             elapsed: 20 * MS,
             discarded: 0,
             finished: false,
+            model_weight: 0.4,
         };
         let at = 1500 * MS;
         let both = screenshot_report(

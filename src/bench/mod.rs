@@ -272,6 +272,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             .filter(|c| c.is_finite())
             .fold(f64::NAN, f64::max),
             first_frame_error: run.first_frame_error,
+            model_error: run.model_error,
+            model_ms: run.model_ms,
         });
         let wavelengths = scene.render.integrator.wavelengths_per_path;
         details.push(SceneDetail {

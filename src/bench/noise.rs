@@ -167,6 +167,12 @@ pub struct NoiseRun {
     /// luminance, with the reference's own noise (`noise_whole`) taken out
     /// in quadrature.
     pub first_frame_error: f64,
+    /// The same error for the approximate sky model
+    /// ([`crate::render::sky_model`]), the preview's first frame.
+    pub model_error: f64,
+    /// Time to build the model and its image at the bench's size, ms (the
+    /// renderer already built).
+    pub model_ms: f64,
 }
 
 impl NoiseRun {
@@ -254,6 +260,8 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         column_correlation: f64::NAN,
         circle_correlation: f64::NAN,
         first_frame_error: f64::NAN,
+        model_error: f64::NAN,
+        model_ms: f64::NAN,
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
@@ -328,6 +336,18 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     let first = luminance(&film);
     let error = relative_noise(&first, &mean, &whole) * 2.0;
     run.first_frame_error = (error * error - run.noise_whole * run.noise_whole)
+        .max(0.0)
+        .sqrt();
+    let started = std::time::Instant::now();
+    let model = renderer.sky_model_image();
+    run.model_ms = started.elapsed().as_secs_f64() * 1e3;
+    let model: Vec<f64> = model
+        .pixels
+        .iter()
+        .map(|p| crate::spectrum::rec709_luminance(p.map(f64::from)))
+        .collect();
+    let error = relative_noise(&model, &mean, &whole) * 2.0;
+    run.model_error = (error * error - run.noise_whole * run.noise_whole)
         .max(0.0)
         .sqrt();
     Ok(run)

@@ -44,6 +44,11 @@ pub struct SceneResult {
     /// RMS error of the first pass against the reference (see
     /// [`NoiseRun::first_frame_error`]).
     pub first_frame_error: f64,
+    /// RMS error of the approximate sky model against the reference (see
+    /// [`NoiseRun::model_error`]).
+    pub model_error: f64,
+    /// Time to build the model and its image, ms.
+    pub model_ms: f64,
 }
 
 /// Everything else measured per scene.
@@ -241,13 +246,16 @@ pub fn format_report(report: &Report) -> String {
     );
     let _ = writeln!(
         out,
-        "| scene | noise sky | noise ground | noise whole | 4K to 1 % | corr. rows | corr. columns | corr. circles | first-pass error |"
+        "| scene | noise sky | noise ground | noise whole | 4K to 1 % | corr. rows | corr. columns | corr. circles | first-pass error | model error | model ms |"
     );
-    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(
+        out,
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
     for (r, d) in report.scenes.iter().zip(&report.details) {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.scene,
             pct(r.noise_at_budget),
             pct(r.noise_ground_at_budget),
@@ -257,6 +265,8 @@ pub fn format_report(report: &Report) -> String {
             num(d.run.column_correlation, 3),
             num(d.run.circle_correlation, 3),
             pct(r.first_frame_error),
+            pct(r.model_error),
+            num(r.model_ms, 0),
         );
     }
     let _ = writeln!(out);

@@ -31,6 +31,7 @@ pub mod parts;
 pub mod probe;
 pub mod renderer;
 pub mod service;
+pub mod sky_model;
 pub mod splatting;
 pub mod sun_columns;
 pub mod sunlight;

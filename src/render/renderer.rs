@@ -192,6 +192,20 @@ impl Renderer {
         &self.plan
     }
 
+    /// The approximate sky of [`super::sky_model`]: the preview's first
+    /// frame (tens of milliseconds; an approximation, never the reference).
+    pub fn sky_model_image(&self) -> crate::output::RgbImage {
+        let model = super::sky_model::SkyModel::new(
+            &self.medium,
+            &self.lane_table,
+            self.cmf,
+            self.sun_direction,
+            self.observer_m,
+        );
+        let r = &self.scene.render;
+        model.image(&self.medium, &self.camera, r.width, r.height)
+    }
+
     /// The camera.
     pub fn camera(&self) -> &Camera {
         &self.camera

@@ -75,6 +75,23 @@ pub struct Frame {
     pub discarded: u64,
     /// The target sample count was reached.
     pub finished: bool,
+    /// The share of the approximate sky model ([`super::sky_model`]) in
+    /// `image`, 0–1 ([`model_weight`]): 1 for the first frame, before any
+    /// pass; 0 once the passes are done.
+    pub model_weight: f64,
+}
+
+/// The approximate sky model's share in a preview frame after `spp` of
+/// `target` passes: 2/(2 + spp), 0 when finished. The model is smooth but
+/// off by 10–40 % (`BENCHMARKS.md`), a pass unbiased but noisy; the share
+/// halves by the second pass and is under 1 % after 200. Only the app's
+/// preview blends: renders and exports are the passes alone.
+pub fn model_weight(spp: u32, target: u32) -> f64 {
+    if spp >= target {
+        0.0
+    } else {
+        2.0 / (2.0 + f64::from(spp))
+    }
 }
 
 impl Frame {
@@ -211,10 +228,29 @@ fn worker_loop(shared: &Shared) {
             }
         };
         let stale = || shared.epoch.load(Ordering::SeqCst) != epoch;
-        let mut film = renderer.new_film();
-        let mut paths = 0u64;
         let start = Instant::now();
         let target = scene.render.spp;
+        // The first frame: the approximate model, in tens of milliseconds.
+        let model = renderer.sky_model_image();
+        if stale() {
+            continue;
+        }
+        publish_image(
+            shared,
+            epoch,
+            Frame {
+                epoch,
+                image: model.clone(),
+                spp: 0,
+                paths: 0,
+                elapsed: start.elapsed(),
+                discarded: 0,
+                finished: false,
+                model_weight: 1.0,
+            },
+        );
+        let mut film = renderer.new_film();
+        let mut paths = 0u64;
         for pass in 0..target {
             // Pausing keeps the film; resume continues where it stopped.
             {
@@ -231,7 +267,15 @@ fn worker_loop(shared: &Shared) {
             if !stats.completed {
                 break;
             }
-            publish(shared, epoch, &film, pass + 1, target, start, paths);
+            publish(
+                shared,
+                epoch,
+                &film,
+                (pass + 1, target),
+                start,
+                paths,
+                &model,
+            );
         }
     }
 }
@@ -240,27 +284,39 @@ fn publish(
     shared: &Shared,
     epoch: u64,
     film: &Film,
-    spp: u32,
-    target: u32,
+    (spp, target): (u32, u32),
     start: Instant,
     paths: u64,
+    model: &RgbImage,
 ) {
-    let image = film.to_rgb();
-    let elapsed = start.elapsed();
+    let mut image = film.to_rgb();
+    let w = model_weight(spp, target);
+    if w > 0.0 {
+        for (p, m) in image.pixels.iter_mut().zip(&model.pixels) {
+            *p =
+                std::array::from_fn(|c| ((1.0 - w) * f64::from(p[c]) + w * f64::from(m[c])) as f32);
+        }
+    }
+    let frame = Frame {
+        epoch,
+        image,
+        spp,
+        paths,
+        elapsed: start.elapsed(),
+        discarded: film.discarded,
+        finished: spp >= target,
+        model_weight: w,
+    };
+    publish_image(shared, epoch, frame);
+}
+
+fn publish_image(shared: &Shared, epoch: u64, frame: Frame) {
     let mut state = shared.state.lock().unwrap();
     // Checked under the lock that `start` takes: no stale frame after a restart.
     if shared.epoch.load(Ordering::SeqCst) != epoch {
         return;
     }
-    state.frame = Some(Arc::new(Frame {
-        epoch,
-        image,
-        spp,
-        paths,
-        elapsed,
-        discarded: film.discarded,
-        finished: spp >= target,
-    }));
+    state.frame = Some(Arc::new(frame));
 }
 
 /// Render a scene to completion on the calling thread's rayon pool, reporting

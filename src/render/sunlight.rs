@@ -496,7 +496,9 @@ impl DensityBuilder {
 
 /// Optical depth toward the sun of lane `j` through `[air, ozone, aerosol]`
 /// columns (see [`SunColumns`]).
-fn sun_optical_depth(lanes: &SpectralLanes, j: usize, [air, o3, aer]: [f64; 3]) -> f64 {
+/// Optical depth toward the sun of lane `j` through `columns` (air, ozone,
+/// aerosol: [`super::sun_columns::SunColumns::at`]).
+pub(super) fn sun_optical_depth(lanes: &SpectralLanes, j: usize, [air, o3, aer]: [f64; 3]) -> f64 {
     lanes.rayleigh_m2[j] * air
         + lanes.ozone_reference_m2(j) * o3
         + lanes.aerosol_extinction_factor(j) * aer

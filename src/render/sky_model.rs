@@ -1,0 +1,663 @@
+//! An approximate sky, computed in a few tens of milliseconds from the
+//! same atmosphere the path tracer renders: the preview's first frame,
+//! shown before the first Monte Carlo pass is in.
+//!
+//! **Method** (Hillaire 2020, "A Scalable and Production Ready Sky and
+//! Atmosphere Rendering Technique", *Computer Graphics Forum* 39(4)): the
+//! same coefficients, phase functions and sun ([`Medium`], [`SpectralLanes`])
+//! at 16 wavelengths, with three approximations, each a table:
+//!
+//! 1. *Sunlight* reaching a point is the straight-line transmittance from
+//!    its column amounts toward the sun ([`Medium::sun_columns`]); zero in
+//!    the planet's shadow.
+//! 2. *Light scattered twice or more* at a point depends on its altitude,
+//!    the solar zenith and the angle between the view and the sun:
+//!    Ψ_X(r, μ_s, ν) = F_ms Σ_ω L₁(ω) P_X(ω·v) Δω for the Rayleigh and
+//!    aerosol phase functions P_X, L₁ the once-scattered light (and the
+//!    lit ground) arriving from ω, and F_ms = 1/(1 − f_ms) Hillaire's
+//!    factor for the orders past the second (f_ms the share of isotropic
+//!    light a point's surroundings scatter back to it; his eqs. 5–10).
+//!    Hillaire takes this light as isotropic; at low sun most of it is the
+//!    haze's forward scattering about the sun (the isotropic table left
+//!    the sky 1°–40° from the setting sun a third too dark), so the second
+//!    scattering keeps the phase functions.
+//! 3. *The sky seen from the observer* is smooth in direction once the
+//!    phase functions are taken out: along a view ray the angle to the sun
+//!    is fixed, so the single scattering is P_R(θ) A_R + P_A(θ) A_A with
+//!    A = ∫ T σ T_sun dt, and the rest (Ψ, the ground) is a third term B.
+//!    A, B are tabulated over elevation (dense at the horizon) and azimuth
+//!    from the sun; each pixel then evaluates the phase functions at its
+//!    own angle, so the aureole is as sharp as the phase function.
+//!
+//! The ground is Lambertian, lit by the sun and by the model's own sky
+//! (its irradiance tabulated over the solar zenith). The spectrum is the
+//! atmosphere's response at 16 wavelengths (360–830 nm), linear between
+//! them, times the sun's spectrum at the colour-matching functions' 1 nm
+//! grid. The sun's disc is left out.
+//!
+//! It is an approximation, never a reference: its error against the
+//! converged path tracer is measured per preset (`skyrender bench`,
+//! `model_error`; `BENCHMARKS.md`).
+
+use std::cell::RefCell;
+use std::f64::consts::PI;
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::camera::Camera;
+use super::directions::horizon_cosine;
+use super::lanes::LaneTable;
+use super::medium::{Lanes, Medium, SpectralLanes, LANES};
+use crate::output::RgbImage;
+use crate::physics::rayleigh;
+use crate::spectrum::{xyz_to_rec709, ColourMatching, K_M};
+
+/// Wavelength groups of [`LANES`] wavelengths each.
+const GROUPS: usize = 4;
+/// Wavelengths at which the model is computed.
+const NODES: usize = GROUPS * LANES;
+/// The nodes' range, nm (the colour-matching functions').
+const RANGE_NM: (f64, f64) = (360.0, 830.0);
+
+/// Steps of a view ray's march.
+const VIEW_STEPS: usize = 32;
+/// Steps of a march inside the multiple-scattering and irradiance tables.
+const TABLE_STEPS: usize = 12;
+/// Directions over which Ψ's integrals are summed.
+const MS_DIRECTIONS: usize = 64;
+/// Altitudes and solar-zenith cosines of the multiple-scattering table.
+const MS_ALTITUDES: usize = 8;
+/// See [`MS_ALTITUDES`].
+const MS_ZENITHS: usize = 33;
+/// Rows (elevation) and columns (azimuth from the sun, 0–180°) of the
+/// observer's sky table.
+const VIEW_ROWS: usize = 64;
+/// See [`VIEW_ROWS`].
+const VIEW_COLUMNS: usize = 32;
+
+/// A quantity at the model's wavelengths.
+type Spectrum = [f64; NODES];
+
+/// The isotropic phase function, sr⁻¹.
+const ISOTROPIC: f64 = 1.0 / (4.0 * PI);
+
+/// The approximate sky of one scene.
+pub struct SkyModel {
+    /// The observer's sky: per texel, A_R, A_A and B at each wavelength.
+    view: Vec<[Spectrum; 3]>,
+    /// Zenith, the horizontal toward the sun, and across, at the observer.
+    frame: [DVec3; 3],
+    /// Elevation of the observer's horizon, radians (≤ 0).
+    horizon_rad: f64,
+    sun_direction: DVec3,
+    /// The lanes of each group (wavelengths, γ).
+    groups: Vec<SpectralLanes>,
+    /// XYZ per unit response at each node: K_M ∫ E_sun h_k x̄ dλ.
+    xyz_weights: [[f64; 3]; NODES],
+}
+
+/// The medium seen through one group of lanes per node group.
+struct Optics<'a> {
+    medium: &'a Medium,
+    groups: &'a [SpectralLanes],
+    sun_direction: DVec3,
+}
+
+/// What a march gathers along a ray, per wavelength.
+#[derive(Default)]
+struct Gathered {
+    /// ∫ T σ_R T_sun dt.
+    rayleigh: Spectrum,
+    /// ∫ T σ_A T_sun dt.
+    aerosol: Spectrum,
+    /// ∫ T σ_s Ψ dt plus the ground's reflected light.
+    isotropic: Spectrum,
+    /// ∫ T σ_s dt.
+    scattering: Spectrum,
+}
+
+impl Optics<'_> {
+    /// Transmittance toward the sun from `x` at each wavelength (0 in the
+    /// planet's shadow).
+    fn sun_transmittance(&self, x: DVec3) -> Spectrum {
+        let mut t = [0.0; NODES];
+        if let Some(columns) = self.medium.sun_columns().at(x, self.sun_direction) {
+            for (g, lanes) in self.groups.iter().enumerate() {
+                for j in 0..LANES {
+                    t[g * LANES + j] =
+                        (-super::sunlight::sun_optical_depth(lanes, j, columns)).exp();
+                }
+            }
+        }
+        t
+    }
+
+    /// Marches from `origin` along `dir` in `steps` (lengths growing as
+    /// the square, short where the ray starts), gathering the sunlight
+    /// scattered toward `origin`, the multiple scattering `ms` (if given),
+    /// and the ground's light where the ray ends on it, lit by the sun and
+    /// (if given) the sky's irradiance `sky`.
+    fn march(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        steps: usize,
+        ms: Option<&MsTable>,
+        sky: Option<&SkyIrradiance>,
+    ) -> Gathered {
+        let mut out = Gathered::default();
+        let Some(span) = self.medium.span(origin, dir) else {
+            return out;
+        };
+        let length = span.t_exit - span.t_enter;
+        let nu = dir.dot(self.sun_direction);
+        let mut transmittance = [1.0; NODES];
+        let mut t0 = span.t_enter;
+        for s in 0..steps {
+            let t1 = span.t_enter + length * ((s + 1) as f64 / steps as f64).powi(2);
+            let dt = t1 - t0;
+            let x = origin + dir * (0.5 * (t0 + t1));
+            let r = x.length();
+            let sun = self.sun_transmittance(x);
+            let psi = ms.map(|m| m.at(r, x.dot(self.sun_direction) / r, nu));
+            for (g, lanes) in self.groups.iter().enumerate() {
+                let c = self.medium.coefficients(r, lanes);
+                for j in 0..LANES {
+                    let k = g * LANES + j;
+                    let extinction = c.extinction(j);
+                    // ∫ over the step of T(t) with σ_t constant: T₀ (1 − e^{−σΔt})/σ.
+                    let step_t = (-extinction * dt).exp();
+                    let weight = if extinction > 0.0 {
+                        transmittance[k] * (1.0 - step_t) / extinction
+                    } else {
+                        transmittance[k] * dt
+                    };
+                    out.rayleigh[k] += weight * c.rayleigh[j] * sun[k];
+                    out.aerosol[k] += weight * c.aerosol_scattering[j] * sun[k];
+                    out.scattering[k] += weight * c.scattering(j);
+                    if let Some([psi_r, psi_a]) = &psi {
+                        out.isotropic[k] += weight
+                            * (c.rayleigh[j] * psi_r[k] + c.aerosol_scattering[j] * psi_a[k]);
+                    }
+                    transmittance[k] *= step_t;
+                }
+            }
+            t0 = t1;
+        }
+        if span.hits_ground {
+            let g = origin + dir * span.t_exit;
+            let mu_sun = (g.dot(self.sun_direction) / g.length()).max(0.0);
+            let sun = self.sun_transmittance(g);
+            let irradiance = sky.map(|s| s.at(g.dot(self.sun_direction) / g.length()));
+            for (group, lanes) in self.groups.iter().enumerate() {
+                for j in 0..LANES {
+                    let k = group * LANES + j;
+                    let e = mu_sun * sun[k] + irradiance.map_or(0.0, |e| e[k]);
+                    out.isotropic[k] += transmittance[k] * lanes.ground_albedo[j] / PI * e;
+                }
+            }
+        }
+        out
+    }
+
+    /// Σ over lanes of the phase functions at cosine `mu` between the ray
+    /// and the sun: (P_R, P_A) per wavelength.
+    fn phases(&self, mu: f64) -> (Spectrum, Spectrum) {
+        let mut rayleigh_phase = [0.0; NODES];
+        let mut aerosol_phase = [0.0; NODES];
+        for (g, lanes) in self.groups.iter().enumerate() {
+            let aerosol = self.medium.aerosol_phases(mu, lanes);
+            for j in 0..LANES {
+                rayleigh_phase[g * LANES + j] = rayleigh::phase(mu, lanes.rayleigh_gamma[j]);
+                aerosol_phase[g * LANES + j] = aerosol[j];
+            }
+        }
+        (rayleigh_phase, aerosol_phase)
+    }
+}
+
+/// Ψ(r, μ_s, ν): the light scattered twice or more toward a point's
+/// viewer, per unit Rayleigh and aerosol scattering coefficient, by the
+/// cosine ν between the view and the sun. Hillaire's table takes this
+/// light as isotropic; at low sun most of it is haze's forward
+/// scattering about the sun, so here the second scattering keeps the
+/// phase functions: Ψ_X(ν) = F_ms Σ_ω L₁(ω) P_X(ω·v) Δω, L₁ the once-
+/// scattered light (and lit ground) arriving from ω with the true phase
+/// functions, v at ν from the sun (averaged over two azimuths about it),
+/// and F_ms = 1/(1 − f_ms) Hillaire's isotropic factor for the orders past
+/// the second.
+struct MsTable {
+    planet_radius_m: f64,
+    top_m: f64,
+    /// Per (altitude, zenith, ν): (Ψ_R, Ψ_A).
+    values: Vec<[Spectrum; 2]>,
+}
+
+/// View–sun cosines of [`MsTable`]: ν = 1 − 2u², dense about the sun.
+const MS_VIEW_ANGLES: usize = 16;
+
+fn view_cosine_of(i: usize) -> f64 {
+    let u = i as f64 / (MS_VIEW_ANGLES - 1) as f64;
+    1.0 - 2.0 * u * u
+}
+
+fn view_cosine_index(nu: f64) -> f64 {
+    (0.5 * (1.0 - nu.clamp(-1.0, 1.0))).sqrt() * (MS_VIEW_ANGLES - 1) as f64
+}
+
+impl MsTable {
+    fn new(optics: &Optics<'_>) -> Self {
+        let medium = optics.medium;
+        let (planet_radius_m, top_m) = (
+            medium.planet_radius_m,
+            medium.top_radius_m - medium.planet_radius_m,
+        );
+        let directions = fibonacci_sphere(MS_DIRECTIONS);
+        let weight = 4.0 * PI / MS_DIRECTIONS as f64;
+        let values = (0..MS_ALTITUDES * MS_ZENITHS)
+            .into_par_iter()
+            .flat_map_iter(|cell| {
+                let (i, k) = (cell / MS_ZENITHS, cell % MS_ZENITHS);
+                let r = planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
+                let mu_s = zenith_cosine_of(k as f64);
+                let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
+                let cell_optics = Optics {
+                    sun_direction: sun,
+                    ..*optics
+                };
+                let origin = DVec3::new(0.0, 0.0, r);
+                let mut transfer = [0.0; NODES];
+                let once: Vec<Spectrum> = directions
+                    .iter()
+                    .map(|&dir| {
+                        let g = cell_optics.march(origin, dir, TABLE_STEPS, None, None);
+                        let (pr, pa) = cell_optics.phases(dir.dot(sun));
+                        for (t, scattering) in transfer.iter_mut().zip(g.scattering) {
+                            *t += scattering * ISOTROPIC * weight;
+                        }
+                        std::array::from_fn(|n| {
+                            pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n]
+                        })
+                    })
+                    .collect();
+                let factor: Spectrum = std::array::from_fn(|n| 1.0 / (1.0 - transfer[n].min(0.99)));
+                // Views at ν from the sun, in the plane of the sun and the
+                // zenith and across it.
+                let across = DVec3::Y;
+                let toward = DVec3::new(-sun.z, 0.0, sun.x);
+                (0..MS_VIEW_ANGLES)
+                    .map(|a| {
+                        let nu = view_cosine_of(a);
+                        let sin = (1.0 - nu * nu).max(0.0).sqrt();
+                        let mut out = [[0.0; NODES]; 2];
+                        for side in [toward, across] {
+                            let view = sun * nu + side * sin;
+                            for (dir, l1) in directions.iter().zip(&once) {
+                                let (pr, pa) = cell_optics.phases(dir.dot(view));
+                                for n in 0..NODES {
+                                    out[0][n] += 0.5 * l1[n] * pr[n] * weight * factor[n];
+                                    out[1][n] += 0.5 * l1[n] * pa[n] * weight * factor[n];
+                                }
+                            }
+                        }
+                        out
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        Self {
+            planet_radius_m,
+            top_m,
+            values,
+        }
+    }
+
+    /// (Ψ_R, Ψ_A) at distance `r` from the centre, solar-zenith cosine
+    /// `mu_s` and view–sun cosine `nu`.
+    fn at(&self, r: f64, mu_s: f64, nu: f64) -> [Spectrum; 2] {
+        let split = |x: f64, n: usize| {
+            let x = x.clamp(0.0, (n - 1) as f64);
+            let i = (x as usize).min(n - 2);
+            (i, x - i as f64)
+        };
+        let (i, fi) = split(
+            altitude_index(r - self.planet_radius_m, MS_ALTITUDES, self.top_m),
+            MS_ALTITUDES,
+        );
+        let (k, fk) = split(zenith_index(mu_s), MS_ZENITHS);
+        let (a, fa) = split(view_cosine_index(nu), MS_VIEW_ANGLES);
+        let mut out = [[0.0; NODES]; 2];
+        for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
+            for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
+                for (da, wa) in [(0, 1.0 - fa), (1, fa)] {
+                    let w = wi * wk * wa;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let cell = ((i + di) * MS_ZENITHS + k + dk) * MS_VIEW_ANGLES + a + da;
+                    let v = &self.values[cell];
+                    for n in 0..NODES {
+                        out[0][n] += w * v[0][n];
+                        out[1][n] += w * v[1][n];
+                    }
+                }
+            }
+        }
+        out
+    }
+}
+
+/// The sky's irradiance on the ground by solar-zenith cosine.
+struct SkyIrradiance {
+    values: Vec<Spectrum>,
+}
+
+impl SkyIrradiance {
+    fn new(optics: &Optics<'_>, ms: &MsTable) -> Self {
+        let medium = optics.medium;
+        let up: Vec<DVec3> = fibonacci_sphere(2 * MS_DIRECTIONS)
+            .into_iter()
+            .filter(|d| d.z > 0.0)
+            .collect();
+        let weight = 4.0 * PI / (2 * MS_DIRECTIONS) as f64;
+        let values = (0..MS_ZENITHS)
+            .into_par_iter()
+            .map(|k| {
+                let mu_s = zenith_cosine_of(k as f64);
+                let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
+                let cell_optics = Optics {
+                    sun_direction: sun,
+                    ..*optics
+                };
+                let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1.0);
+                let mut e = [0.0; NODES];
+                for &dir in &up {
+                    let g = cell_optics.march(origin, dir, TABLE_STEPS, Some(ms), None);
+                    let (pr, pa) = cell_optics.phases(dir.dot(sun));
+                    for n in 0..NODES {
+                        let radiance =
+                            pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n];
+                        e[n] += radiance * dir.z * weight;
+                    }
+                }
+                e
+            })
+            .collect();
+        Self { values }
+    }
+
+    fn at(&self, mu_s: f64) -> Spectrum {
+        bilinear(
+            &self.values,
+            MS_ZENITHS,
+            (0.0, 1),
+            (zenith_index(mu_s), MS_ZENITHS),
+        )
+    }
+}
+
+impl SkyModel {
+    /// The model of `medium` lit along `sun_direction`, seen from
+    /// `observer_m`, in the sun and colours of `lane_table` and `cmf`.
+    pub fn new(
+        medium: &Medium,
+        lane_table: &LaneTable,
+        cmf: &ColourMatching,
+        sun_direction: DVec3,
+        observer_m: DVec3,
+    ) -> Self {
+        let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
+        let groups: Vec<SpectralLanes> = nodes
+            .chunks(LANES)
+            .map(|w| lane_table.lanes(Lanes::from_fn(|j| w[j]), LANES, medium))
+            .collect();
+        let optics = Optics {
+            medium,
+            groups: &groups,
+            sun_direction,
+        };
+        let ms = MsTable::new(&optics);
+        let sky = SkyIrradiance::new(&optics, &ms);
+        let zenith = observer_m.normalize();
+        let toward_sun = sun_direction - zenith * sun_direction.dot(zenith);
+        let x = if toward_sun.length() > 1e-9 {
+            toward_sun.normalize()
+        } else {
+            zenith.any_orthonormal_vector()
+        };
+        let frame = [zenith, x, zenith.cross(x)];
+        let r = observer_m.length();
+        // The horizon dips by acos(R/r) below the horizontal.
+        let horizon_rad = (-horizon_cosine(medium.planet_radius_m, r.max(medium.planet_radius_m)))
+            .clamp(0.0, 1.0)
+            .asin()
+            - PI / 2.0;
+        let view = (0..VIEW_ROWS * VIEW_COLUMNS)
+            .into_par_iter()
+            .map(|texel| {
+                let (row, column) = (texel / VIEW_COLUMNS, texel % VIEW_COLUMNS);
+                let elevation = elevation_of_row(row as f64, horizon_rad);
+                let azimuth = PI * column as f64 / (VIEW_COLUMNS - 1) as f64;
+                let dir = direction(&frame, elevation, azimuth);
+                let g = optics.march(observer_m, dir, VIEW_STEPS, Some(&ms), Some(&sky));
+                [g.rayleigh, g.aerosol, g.isotropic]
+            })
+            .collect();
+        Self {
+            view,
+            frame,
+            horizon_rad,
+            sun_direction,
+            xyz_weights: xyz_weights(medium, lane_table, cmf, &nodes),
+            groups,
+        }
+    }
+
+    /// The model's radiance along `dir` from the observer as CIE XYZ (Y, the
+    /// luminance, in cd m⁻²), the sun's disc left out.
+    pub fn xyz(&self, medium: &Medium, dir: DVec3) -> [f64; 3] {
+        let [zenith, x, y] = self.frame;
+        let elevation = dir.dot(zenith).clamp(-1.0, 1.0).asin();
+        let azimuth = dir.dot(y).atan2(dir.dot(x)).abs();
+        let row = row_of_elevation(elevation, self.horizon_rad);
+        let column = azimuth / PI * (VIEW_COLUMNS - 1) as f64;
+        let pick = |n: usize| {
+            let at = |texel: &[Spectrum; 3]| texel[n];
+            bilinear_with(
+                &self.view,
+                VIEW_COLUMNS,
+                (row, VIEW_ROWS),
+                (column, VIEW_COLUMNS),
+                at,
+            )
+        };
+        let [ar, aa, b] = [pick(0), pick(1), pick(2)];
+        let optics = Optics {
+            medium,
+            groups: &self.groups,
+            sun_direction: self.sun_direction,
+        };
+        let (pr, pa) = optics.phases(dir.dot(self.sun_direction));
+        let mut xyz = [0.0; 3];
+        for n in 0..NODES {
+            let response = pr[n] * ar[n] + pa[n] * aa[n] + b[n];
+            for (v, w) in xyz.iter_mut().zip(self.xyz_weights[n]) {
+                *v += response * w;
+            }
+        }
+        xyz
+    }
+
+    /// The model seen through `camera`: linear Rec.709, Y in cd m⁻²
+    /// (black where a pixel has no ray).
+    pub fn image(&self, medium: &Medium, camera: &Camera, width: u32, height: u32) -> RgbImage {
+        let pixels = (0..width as usize * height as usize)
+            .into_par_iter()
+            .map(|i| {
+                let (px, py) = (i % width as usize, i / width as usize);
+                camera
+                    .direction(px as f64 + 0.5, py as f64 + 0.5)
+                    .map_or([0.0; 3], |dir| {
+                        xyz_to_rec709(self.xyz(medium, dir)).map(|v| v as f32)
+                    })
+            })
+            .collect();
+        RgbImage {
+            width,
+            height,
+            pixels,
+        }
+    }
+}
+
+/// Node `k`'s wavelength, nm.
+fn node_wavelength(k: usize) -> f64 {
+    RANGE_NM.0 + (RANGE_NM.1 - RANGE_NM.0) * k as f64 / (NODES - 1) as f64
+}
+
+/// K_M ∫ E_sun(λ) h_k(λ) x̄(λ) dλ for the hat function h_k of each node,
+/// on the colour-matching table's own grid.
+fn xyz_weights(
+    medium: &Medium,
+    lane_table: &LaneTable,
+    cmf: &ColourMatching,
+    nodes: &[f64],
+) -> [[f64; 3]; NODES] {
+    // The grid's wavelengths, then the sun there, four at a time.
+    let grid = RefCell::new(Vec::new());
+    cmf.integrate(|w| {
+        grid.borrow_mut().push(w);
+        0.0
+    });
+    let grid = grid.into_inner();
+    let sun: Vec<f64> = grid
+        .chunks(LANES)
+        .flat_map(|w| {
+            let lanes = lane_table.lanes(Lanes::from_fn(|j| w[j.min(w.len() - 1)]), LANES, medium);
+            (0..w.len()).map(move |j| lanes.sun_irradiance[j])
+        })
+        .collect();
+    let step = nodes[1] - nodes[0];
+    std::array::from_fn(|k| {
+        let index = std::cell::Cell::new(0);
+        let xyz = cmf.integrate(|w| {
+            let i = index.get();
+            index.set(i + 1);
+            let hat = (1.0 - (w - nodes[k]).abs() / step).max(0.0);
+            // Beyond the end nodes the end node holds the response.
+            let hat = if (k == 0 && w < nodes[0]) || (k == NODES - 1 && w > nodes[NODES - 1]) {
+                1.0
+            } else {
+                hat
+            };
+            sun.get(i).copied().unwrap_or(0.0) * hat
+        });
+        xyz.map(|v| K_M * v)
+    })
+}
+
+/// Solar-zenith cosine of fractional node `k` of [`MS_ZENITHS`]: square
+/// spacing about the horizon (μ = ±u², u from −1 to 1), where the light
+/// changes fastest with the sun's height (twilight, sunset).
+fn zenith_cosine_of(k: f64) -> f64 {
+    let u = 2.0 * k / (MS_ZENITHS - 1) as f64 - 1.0;
+    u * u.abs()
+}
+
+/// [`zenith_cosine_of`]'s inverse.
+fn zenith_index(mu_s: f64) -> f64 {
+    let mu = mu_s.clamp(-1.0, 1.0);
+    let u = mu.signum() * mu.abs().sqrt();
+    0.5 * (u + 1.0) * (MS_ZENITHS - 1) as f64
+}
+
+/// Altitude of row `i` of `n` over an atmosphere `top_m` high: square
+/// spacing, dense low down.
+fn altitude_of(i: usize, n: usize, top_m: f64) -> f64 {
+    (top_m * (i as f64 / (n - 1) as f64).powi(2)).clamp(1.0, top_m - 1.0)
+}
+
+/// Fractional row of `altitude_m` ([`altitude_of`]'s inverse).
+fn altitude_index(altitude_m: f64, n: usize, top_m: f64) -> f64 {
+    (altitude_m / top_m).clamp(0.0, 1.0).sqrt() * (n - 1) as f64
+}
+
+/// Elevation of fractional `row`: rows crowd about the horizon (at
+/// `horizon_rad`), where the sky changes fastest (Hillaire's mapping).
+fn elevation_of_row(row: f64, horizon_rad: f64) -> f64 {
+    let v = row / (VIEW_ROWS - 1) as f64;
+    if v >= 0.5 {
+        let u = 2.0 * v - 1.0;
+        horizon_rad + u * u * (PI / 2.0 - horizon_rad)
+    } else {
+        let u = 1.0 - 2.0 * v;
+        horizon_rad - u * u * (PI / 2.0 + horizon_rad)
+    }
+}
+
+/// [`elevation_of_row`]'s inverse.
+fn row_of_elevation(elevation: f64, horizon_rad: f64) -> f64 {
+    let v = if elevation >= horizon_rad {
+        0.5 + 0.5 * ((elevation - horizon_rad) / (PI / 2.0 - horizon_rad)).sqrt()
+    } else {
+        0.5 - 0.5 * ((horizon_rad - elevation) / (PI / 2.0 + horizon_rad)).sqrt()
+    };
+    v.clamp(0.0, 1.0) * (VIEW_ROWS - 1) as f64
+}
+
+/// The direction at `elevation` and `azimuth` from the sun in `frame`.
+fn direction(frame: &[DVec3; 3], elevation: f64, azimuth: f64) -> DVec3 {
+    let [zenith, x, y] = *frame;
+    (zenith * elevation.sin() + (x * azimuth.cos() + y * azimuth.sin()) * elevation.cos())
+        .normalize()
+}
+
+/// `n` directions spread evenly over the sphere (a Fibonacci lattice).
+fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
+    let golden = PI * (3.0 - 5.0_f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden * i as f64;
+            DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect()
+}
+
+/// Bilinear interpolation in a row-major table of spectra, `columns` wide,
+/// at fractional (row, column), each clamped to its count.
+fn bilinear(
+    values: &[Spectrum],
+    columns: usize,
+    row: (f64, usize),
+    column: (f64, usize),
+) -> Spectrum {
+    bilinear_with(values, columns, row, column, |s| *s)
+}
+
+/// [`bilinear`] of the spectrum `pick` takes from each entry.
+fn bilinear_with<T>(
+    values: &[T],
+    columns: usize,
+    (row, rows): (f64, usize),
+    (column, column_count): (f64, usize),
+    pick: impl Fn(&T) -> Spectrum,
+) -> Spectrum {
+    let split = |x: f64, n: usize| {
+        let x = x.clamp(0.0, (n - 1) as f64);
+        let i = (x as usize).min(n.saturating_sub(2));
+        (i, (x - i as f64).min(1.0))
+    };
+    let (i, fi) = split(row, rows);
+    let (k, fk) = split(column, column_count);
+    let at =
+        |i: usize, k: usize| pick(&values[(i.min(rows - 1)) * columns + k.min(column_count - 1)]);
+    let (a, b, c, d) = (at(i, k), at(i, k + 1), at(i + 1, k), at(i + 1, k + 1));
+    std::array::from_fn(|n| {
+        let lo = a[n] + fk * (b[n] - a[n]);
+        let hi = c[n] + fk * (d[n] - c[n]);
+        lo + fi * (hi - lo)
+    })
+}
