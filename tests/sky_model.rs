@@ -45,8 +45,8 @@ fn model_error(name: &str) -> f64 {
 
 #[test]
 fn the_model_is_within_its_measured_error_of_the_path_tracer() {
-    // The bounds are the errors measured at this size (midday 12 %,
-    // sunset 16 %, twilight 27 %, space 37 %; BENCHMARKS.md) with room
+    // The bounds are the errors measured at this size (midday 13 %,
+    // sunset 17 %, twilight 18 %, space 37 %; BENCHMARKS.md) with room
     // for the reference's noise. What remains is the light scattered
     // three times and more (Hillaire's isotropic factor), the sky near the
     // horizon at low sun, and the limb seen from orbit. The first Monte
@@ -69,10 +69,12 @@ fn the_preview_shows_the_model_first_and_blends_it_out() {
     assert_eq!(model_weight(2, 64), 0.5);
     assert!(model_weight(200, 1024) < 0.01);
     assert_eq!(model_weight(64, 64), 0.0);
+    // Large enough that a pass takes far longer than the polling interval,
+    // so the model's frame cannot come and go unseen.
     let mut scene = Scene::preset("sunset").unwrap();
-    scene.render.width = 32;
-    scene.render.height = 16;
-    scene.render.spp = 4;
+    scene.render.width = 160;
+    scene.render.height = 80;
+    scene.render.spp = 3;
     let service = RenderService::new();
     let epoch = service.start(scene);
     let started = Instant::now();
@@ -81,25 +83,23 @@ fn the_preview_shows_the_model_first_and_blends_it_out() {
         if let Some(frame) = service.latest().filter(|f| f.epoch == epoch) {
             if seen.last() != Some(&frame.spp) {
                 seen.push(frame.spp);
-                assert_eq!(
-                    frame.model_weight,
-                    model_weight(frame.spp, 4),
-                    "{}",
-                    frame.spp
-                );
-                assert!(frame
-                    .image
-                    .pixels
-                    .iter()
-                    .flatten()
-                    .all(|v| v.is_finite() && *v >= 0.0));
+                assert_eq!(frame.model_weight, model_weight(frame.spp, 3));
+                // Finite; the model's luminance never negative (a colour
+                // outside Rec.709 may have a negative channel, and a pass
+                // under the control variate a negative pixel).
+                let pixels = &frame.image.pixels;
+                assert!(pixels.iter().flatten().all(|v| v.is_finite()));
+                if frame.spp == 0 {
+                    let y = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
+                    assert!(pixels.iter().all(|p| y(p) >= 0.0));
+                }
             }
             if frame.finished {
                 break;
             }
         }
-        std::thread::sleep(Duration::from_millis(2));
+        std::thread::sleep(Duration::from_millis(1));
     }
     assert_eq!(seen.first(), Some(&0), "{seen:?}");
-    assert_eq!(seen.last(), Some(&4), "{seen:?}");
+    assert_eq!(seen.last(), Some(&3), "{seen:?}");
 }

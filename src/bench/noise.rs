@@ -166,13 +166,10 @@ pub struct NoiseRun {
     /// mean of A and B over the whole image, relative to its mean
     /// luminance, with the reference's own noise (`noise_whole`) taken out
     /// in quadrature.
-    pub first_frame_error: f64,
+    pub first_pass_error: f64,
     /// The same error for the approximate sky model
-    /// ([`crate::render::sky_model`]), the preview's first frame.
+    /// ([`crate::render::sky_model`]): the preview's first frame.
     pub model_error: f64,
-    /// Time to build the model and its image at the bench's size, ms (the
-    /// renderer already built).
-    pub model_ms: f64,
 }
 
 impl NoiseRun {
@@ -259,9 +256,8 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         row_correlation: f64::NAN,
         column_correlation: f64::NAN,
         circle_correlation: f64::NAN,
-        first_frame_error: f64::NAN,
+        first_pass_error: f64::NAN,
         model_error: f64::NAN,
-        model_ms: f64::NAN,
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
@@ -335,13 +331,11 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     renderer.render_pass(&mut film, 0, &|| false);
     let first = luminance(&film);
     let error = relative_noise(&first, &mean, &whole) * 2.0;
-    run.first_frame_error = (error * error - run.noise_whole * run.noise_whole)
+    run.first_pass_error = (error * error - run.noise_whole * run.noise_whole)
         .max(0.0)
         .sqrt();
-    let started = std::time::Instant::now();
-    let model = renderer.sky_model_image();
-    run.model_ms = started.elapsed().as_secs_f64() * 1e3;
-    let model: Vec<f64> = model
+    let model: Vec<f64> = renderer
+        .sky_model_image()
         .pixels
         .iter()
         .map(|p| crate::spectrum::rec709_luminance(p.map(f64::from)))

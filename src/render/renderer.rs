@@ -203,7 +203,7 @@ impl Renderer {
             self.observer_m,
         );
         let r = &self.scene.render;
-        model.image(&self.medium, &self.camera, r.width, r.height)
+        model.image(&self.camera, r.width, r.height)
     }
 
     /// The camera.

@@ -65,7 +65,7 @@ const VIEW_STEPS: usize = 32;
 /// Steps of a march inside the multiple-scattering and irradiance tables.
 const TABLE_STEPS: usize = 12;
 /// Directions over which Ψ's integrals are summed.
-const MS_DIRECTIONS: usize = 64;
+const MS_DIRECTIONS: usize = 32;
 /// Altitudes and solar-zenith cosines of the multiple-scattering table.
 const MS_ALTITUDES: usize = 8;
 /// See [`MS_ALTITUDES`].
@@ -91,8 +91,8 @@ pub struct SkyModel {
     /// Elevation of the observer's horizon, radians (≤ 0).
     horizon_rad: f64,
     sun_direction: DVec3,
-    /// The lanes of each group (wavelengths, γ).
-    groups: Vec<SpectralLanes>,
+    /// The phase functions at each wavelength.
+    phases: Phases,
     /// XYZ per unit response at each node: K_M ∫ E_sun h_k x̄ dλ.
     xyz_weights: [[f64; 3]; NODES],
 }
@@ -101,6 +101,7 @@ pub struct SkyModel {
 struct Optics<'a> {
     medium: &'a Medium,
     groups: &'a [SpectralLanes],
+    phases: &'a Phases,
     sun_direction: DVec3,
 }
 
@@ -201,19 +202,54 @@ impl Optics<'_> {
         out
     }
 
-    /// Σ over lanes of the phase functions at cosine `mu` between the ray
-    /// and the sun: (P_R, P_A) per wavelength.
+    /// The phase functions (P_R, P_A) at each wavelength at cosine `mu`
+    /// between the ray and the sun ([`Phases`]).
     fn phases(&self, mu: f64) -> (Spectrum, Spectrum) {
-        let mut rayleigh_phase = [0.0; NODES];
-        let mut aerosol_phase = [0.0; NODES];
-        for (g, lanes) in self.groups.iter().enumerate() {
-            let aerosol = self.medium.aerosol_phases(mu, lanes);
-            for j in 0..LANES {
-                rayleigh_phase[g * LANES + j] = rayleigh::phase(mu, lanes.rayleigh_gamma[j]);
-                aerosol_phase[g * LANES + j] = aerosol[j];
-            }
-        }
-        (rayleigh_phase, aerosol_phase)
+        self.phases.at(mu)
+    }
+}
+
+/// Samples of [`Phases`].
+const PHASE_SAMPLES: usize = 2048;
+
+/// The Rayleigh and aerosol phase functions at each wavelength, tabulated
+/// at μ = 1 − 2u², u uniform (0.11° apart at the forward peak), linear in
+/// between: the model evaluates them about a million times, and a
+/// tabulated phase function over wavelength costs two searches each.
+struct Phases {
+    values: Vec<(Spectrum, Spectrum)>,
+}
+
+impl Phases {
+    fn new(medium: &Medium, groups: &[SpectralLanes]) -> Self {
+        let values = (0..PHASE_SAMPLES)
+            .map(|i| {
+                let u = i as f64 / (PHASE_SAMPLES - 1) as f64;
+                let mu = 1.0 - 2.0 * u * u;
+                let (mut rayleigh_phase, mut aerosol_phase) = ([0.0; NODES], [0.0; NODES]);
+                for (g, lanes) in groups.iter().enumerate() {
+                    let aerosol = medium.aerosol_phases(mu, lanes);
+                    for j in 0..LANES {
+                        rayleigh_phase[g * LANES + j] =
+                            rayleigh::phase(mu, lanes.rayleigh_gamma[j]);
+                        aerosol_phase[g * LANES + j] = aerosol[j];
+                    }
+                }
+                (rayleigh_phase, aerosol_phase)
+            })
+            .collect();
+        Self { values }
+    }
+
+    fn at(&self, mu: f64) -> (Spectrum, Spectrum) {
+        let x = (0.5 * (1.0 - mu.clamp(-1.0, 1.0))).sqrt() * (PHASE_SAMPLES - 1) as f64;
+        let i = (x as usize).min(PHASE_SAMPLES - 2);
+        let f = x - i as f64;
+        let ((ra, aa), (rb, ab)) = (&self.values[i], &self.values[i + 1]);
+        (
+            std::array::from_fn(|n| ra[n] + f * (rb[n] - ra[n])),
+            std::array::from_fn(|n| aa[n] + f * (ab[n] - aa[n])),
+        )
     }
 }
 
@@ -255,55 +291,86 @@ impl MsTable {
         );
         let directions = fibonacci_sphere(MS_DIRECTIONS);
         let weight = 4.0 * PI / MS_DIRECTIONS as f64;
-        let values = (0..MS_ALTITUDES * MS_ZENITHS)
+        // Per solar zenith (the sun's direction, and so every phase
+        // function value, is the same at each altitude): the altitudes' rows.
+        let per_zenith: Vec<Vec<[Spectrum; 2]>> = (0..MS_ZENITHS)
             .into_par_iter()
-            .flat_map_iter(|cell| {
-                let (i, k) = (cell / MS_ZENITHS, cell % MS_ZENITHS);
-                let r = planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
+            .map(|k| {
                 let mu_s = zenith_cosine_of(k as f64);
                 let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
                 let cell_optics = Optics {
                     sun_direction: sun,
                     ..*optics
                 };
-                let origin = DVec3::new(0.0, 0.0, r);
-                let mut transfer = [0.0; NODES];
-                let once: Vec<Spectrum> = directions
-                    .iter()
-                    .map(|&dir| {
-                        let g = cell_optics.march(origin, dir, TABLE_STEPS, None, None);
-                        let (pr, pa) = cell_optics.phases(dir.dot(sun));
-                        for (t, scattering) in transfer.iter_mut().zip(g.scattering) {
-                            *t += scattering * ISOTROPIC * weight;
-                        }
-                        std::array::from_fn(|n| {
-                            pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n]
-                        })
-                    })
-                    .collect();
-                let factor: Spectrum = std::array::from_fn(|n| 1.0 / (1.0 - transfer[n].min(0.99)));
                 // Views at ν from the sun, in the plane of the sun and the
-                // zenith and across it.
-                let across = DVec3::Y;
-                let toward = DVec3::new(-sun.z, 0.0, sun.x);
-                (0..MS_VIEW_ANGLES)
-                    .map(|a| {
+                // zenith and across it, each weighted ½.
+                let (toward, across) = (DVec3::new(-sun.z, 0.0, sun.x), DVec3::Y);
+                let views: Vec<DVec3> = (0..MS_VIEW_ANGLES)
+                    .flat_map(|a| {
                         let nu = view_cosine_of(a);
                         let sin = (1.0 - nu * nu).max(0.0).sqrt();
-                        let mut out = [[0.0; NODES]; 2];
-                        for side in [toward, across] {
-                            let view = sun * nu + side * sin;
-                            for (dir, l1) in directions.iter().zip(&once) {
-                                let (pr, pa) = cell_optics.phases(dir.dot(view));
-                                for n in 0..NODES {
-                                    out[0][n] += 0.5 * l1[n] * pr[n] * weight * factor[n];
-                                    out[1][n] += 0.5 * l1[n] * pa[n] * weight * factor[n];
-                                }
-                            }
-                        }
-                        out
+                        [sun * nu + toward * sin, sun * nu + across * sin]
                     })
-                    .collect::<Vec<_>>()
+                    .collect();
+                let to_sun: Vec<_> = directions
+                    .iter()
+                    .map(|d| optics.phases(d.dot(sun)))
+                    .collect();
+                let to_view: Vec<Vec<_>> = views
+                    .iter()
+                    .map(|v| {
+                        directions
+                            .iter()
+                            .map(|d| optics.phases(d.dot(*v)))
+                            .collect()
+                    })
+                    .collect();
+                (0..MS_ALTITUDES)
+                    .flat_map(|i| {
+                        let r = planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
+                        let origin = DVec3::new(0.0, 0.0, r);
+                        let mut transfer = [0.0; NODES];
+                        let once: Vec<Spectrum> = directions
+                            .iter()
+                            .zip(&to_sun)
+                            .map(|(&dir, (pr, pa))| {
+                                let g = cell_optics.march(origin, dir, TABLE_STEPS, None, None);
+                                for (t, scattering) in transfer.iter_mut().zip(g.scattering) {
+                                    *t += scattering * ISOTROPIC * weight;
+                                }
+                                std::array::from_fn(|n| {
+                                    pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n]
+                                })
+                            })
+                            .collect();
+                        let factor: Spectrum =
+                            std::array::from_fn(|n| 0.5 * weight / (1.0 - transfer[n].min(0.99)));
+                        to_view
+                            .chunks(2)
+                            .map(|pair| {
+                                let mut out = [[0.0; NODES]; 2];
+                                for phases in pair {
+                                    for (l1, (pr, pa)) in once.iter().zip(phases) {
+                                        for n in 0..NODES {
+                                            out[0][n] += l1[n] * pr[n];
+                                            out[1][n] += l1[n] * pa[n];
+                                        }
+                                    }
+                                }
+                                out.map(|o| std::array::from_fn(|n| o[n] * factor[n]))
+                            })
+                            .collect::<Vec<_>>()
+                    })
+                    .collect()
+            })
+            .collect();
+        // Reordered to (altitude, zenith, ν).
+        let rows = MS_VIEW_ANGLES;
+        let values = (0..MS_ALTITUDES * MS_ZENITHS * rows)
+            .map(|index| {
+                let (cell, a) = (index / rows, index % rows);
+                let (i, k) = (cell / MS_ZENITHS, cell % MS_ZENITHS);
+                per_zenith[k][i * rows + a]
             })
             .collect();
         Self {
@@ -412,9 +479,11 @@ impl SkyModel {
             .chunks(LANES)
             .map(|w| lane_table.lanes(Lanes::from_fn(|j| w[j]), LANES, medium))
             .collect();
+        let phases = Phases::new(medium, &groups);
         let optics = Optics {
             medium,
             groups: &groups,
+            phases: &phases,
             sun_direction,
         };
         let ms = MsTable::new(&optics);
@@ -450,13 +519,13 @@ impl SkyModel {
             horizon_rad,
             sun_direction,
             xyz_weights: xyz_weights(medium, lane_table, cmf, &nodes),
-            groups,
+            phases,
         }
     }
 
     /// The model's radiance along `dir` from the observer as CIE XYZ (Y, the
     /// luminance, in cd m⁻²), the sun's disc left out.
-    pub fn xyz(&self, medium: &Medium, dir: DVec3) -> [f64; 3] {
+    pub fn xyz(&self, dir: DVec3) -> [f64; 3] {
         let [zenith, x, y] = self.frame;
         let elevation = dir.dot(zenith).clamp(-1.0, 1.0).asin();
         let azimuth = dir.dot(y).atan2(dir.dot(x)).abs();
@@ -473,12 +542,7 @@ impl SkyModel {
             )
         };
         let [ar, aa, b] = [pick(0), pick(1), pick(2)];
-        let optics = Optics {
-            medium,
-            groups: &self.groups,
-            sun_direction: self.sun_direction,
-        };
-        let (pr, pa) = optics.phases(dir.dot(self.sun_direction));
+        let (pr, pa) = self.phases.at(dir.dot(self.sun_direction));
         let mut xyz = [0.0; 3];
         for n in 0..NODES {
             let response = pr[n] * ar[n] + pa[n] * aa[n] + b[n];
@@ -491,7 +555,7 @@ impl SkyModel {
 
     /// The model seen through `camera`: linear Rec.709, Y in cd m⁻²
     /// (black where a pixel has no ray).
-    pub fn image(&self, medium: &Medium, camera: &Camera, width: u32, height: u32) -> RgbImage {
+    pub fn image(&self, camera: &Camera, width: u32, height: u32) -> RgbImage {
         let pixels = (0..width as usize * height as usize)
             .into_par_iter()
             .map(|i| {
@@ -499,7 +563,7 @@ impl SkyModel {
                 camera
                     .direction(px as f64 + 0.5, py as f64 + 0.5)
                     .map_or([0.0; 3], |dir| {
-                        xyz_to_rec709(self.xyz(medium, dir)).map(|v| v as f32)
+                        xyz_to_rec709(self.xyz(dir)).map(|v| v as f32)
                     })
             })
             .collect();

@@ -3,6 +3,7 @@
 //! ([`super::sunlight`]).
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::directions::horizon_cosine;
 
@@ -31,24 +32,27 @@ impl SunColumns {
     pub fn new(
         planet_radius_m: f64,
         top_radius_m: f64,
-        column_along: impl Fn(DVec3, DVec3) -> [f32; 3],
+        column_along: impl Fn(DVec3, DVec3) -> [f32; 3] + Sync,
     ) -> Self {
         let top_m = top_radius_m - planet_radius_m;
-        let mut columns = Vec::with_capacity(ALTITUDE_NODES * ZENITH_NODES);
-        for i in 0..ALTITUDE_NODES {
-            let h = top_m * (i as f64 / (ALTITUDE_NODES - 1) as f64).powi(2);
-            // Just inside the top, so the ray is in the atmosphere.
-            let r = planet_radius_m + h.min(top_m - 1.0);
-            let mu_horizon = horizon_cosine(planet_radius_m, r);
-            for k in 0..ZENITH_NODES {
+        // Each entry on its own (in parallel: the preview's first frame
+        // waits for this table).
+        let columns = (0..ALTITUDE_NODES * ZENITH_NODES)
+            .into_par_iter()
+            .map(|entry| {
+                let (i, k) = (entry / ZENITH_NODES, entry % ZENITH_NODES);
+                let h = top_m * (i as f64 / (ALTITUDE_NODES - 1) as f64).powi(2);
+                // Just inside the top, so the ray is in the atmosphere.
+                let r = planet_radius_m + h.min(top_m - 1.0);
+                let mu_horizon = horizon_cosine(planet_radius_m, r);
                 let u = k as f64 / (ZENITH_NODES - 1) as f64;
                 // Slightly above the horizon so the grazing ray clears the ground.
                 let mu = (mu_horizon + (1.0 - mu_horizon) * u * u + 1e-9).min(1.0);
                 let origin = DVec3::new(0.0, 0.0, r);
                 let dir = DVec3::new((1.0 - mu * mu).max(0.0).sqrt(), 0.0, mu);
-                columns.push(column_along(origin, dir));
-            }
-        }
+                column_along(origin, dir)
+            })
+            .collect();
         Self {
             top_m,
             planet_radius_m,
