@@ -1,6 +1,7 @@
-//! A phase function tabulated against the scattering angle, read from a CSV
-//! file (`angle_deg,phase`): measured or computed elsewhere (a Mie code, an
-//! aerosol climatology such as OPAC) and handed to the renderer as numbers.
+//! A phase function tabulated against the scattering angle: measured or
+//! computed elsewhere (a Mie code, an aerosol climatology such as OPAC) and
+//! handed to the renderer as numbers. Files are read, one table per
+//! wavelength, by [`super::spectral_phase`].
 //!
 //! **Model.** Between two rows the phase function is linear in μ = cos θ,
 //! so the table defines one density on the sphere, which is evaluated,
@@ -18,17 +19,10 @@
 //!   linear pieces against the polynomials.
 
 use std::f64::consts::PI;
-use std::path::{Path, PathBuf};
-use std::sync::{Arc, OnceLock};
 
 /// Most rows a table may have: a phase function at 0.01° steps is 18 001
 /// rows; a file much larger than that is not a phase function table.
 pub const MAX_ROWS: usize = 100_000;
-
-/// The form a phase function file must have, as error messages state it.
-pub const VALID_FORM: &str = "a CSV with the header `angle_deg,phase` and at least two rows \
-     `angle_deg,phase`: scattering angles in degrees increasing from 0 to 180, \
-     phase values finite and ≥ 0, not all 0";
 
 /// A phase function linear in cos θ between tabulated scattering angles,
 /// normalised to 2π ∫ p dμ = 1 (per steradian).
@@ -133,74 +127,6 @@ impl PhaseTable {
             phase: raw.iter().map(|v| v * scale).collect(),
             cdf,
         })
-    }
-
-    /// Parses the text of a phase function file (see [`VALID_FORM`]):
-    /// blank lines and lines starting with `#` are skipped; the first other
-    /// line is the header `angle_deg,phase`. `Err` is (line number, reason).
-    pub fn parse(text: &str) -> Result<Self, (usize, String)> {
-        let mut angles = Vec::new();
-        let mut values = Vec::new();
-        let mut lines_of_rows = Vec::new();
-        let mut header_seen = false;
-        for (i, line) in text.lines().enumerate() {
-            let line_no = i + 1;
-            let line = line.trim();
-            if line.is_empty() || line.starts_with('#') {
-                continue;
-            }
-            if !header_seen {
-                let columns: Vec<&str> = line.split(',').map(str::trim).collect();
-                if columns != ["angle_deg", "phase"] {
-                    return Err((line_no, format!("header '{line}' is not `angle_deg,phase`")));
-                }
-                header_seen = true;
-                continue;
-            }
-            if angles.len() == MAX_ROWS {
-                return Err((line_no, format!("more than {MAX_ROWS} rows")));
-            }
-            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-            let parsed = match fields[..] {
-                [a, p] => a.parse::<f64>().ok().zip(p.parse::<f64>().ok()),
-                _ => None,
-            };
-            let Some((angle, value)) = parsed else {
-                return Err((
-                    line_no,
-                    format!("'{line}' is not two numbers `angle_deg,phase`"),
-                ));
-            };
-            angles.push(angle);
-            values.push(value);
-            lines_of_rows.push(line_no);
-        }
-        if !header_seen {
-            return Err((0, "no header `angle_deg,phase`".into()));
-        }
-        // Row numbers back to line numbers; 0 (the file as a whole) and a
-        // count past the rows (too few of them) name the last line.
-        let last_line = text.lines().count();
-        Self::new(&angles, &values).map_err(|(row, reason)| {
-            let line = match row {
-                0 => last_line,
-                r => lines_of_rows.get(r - 1).copied().unwrap_or(last_line),
-            };
-            (line, reason)
-        })
-    }
-
-    /// Reads and parses a phase function file; the error names the file,
-    /// the line and the valid form.
-    pub fn load(path: &Path) -> Result<Self, String> {
-        super::data_file::load(path, VALID_FORM, Self::parse)
-    }
-
-    /// [`Self::load`], once per path for the life of the process
-    /// ([`super::data_file::cached`]).
-    pub fn cached(path: &Path) -> Result<Arc<Self>, String> {
-        static CACHE: super::data_file::Cache<PathBuf, PhaseTable> = OnceLock::new();
-        super::data_file::cached(&CACHE, path.to_owned(), || Self::load(path))
     }
 
     /// Index `k` of the segment `mu[k]..=mu[k+1]` that holds `mu`.
@@ -310,6 +236,7 @@ impl PhaseTable {
 mod tests {
     use super::*;
     use crate::physics::aerosol::henyey_greenstein;
+    use crate::physics::spectral_phase::SpectralPhaseTable;
 
     /// Henyey–Greenstein g at whole degrees 0..=180.
     fn hg_table(g: f64, step_deg: f64) -> PhaseTable {
@@ -420,11 +347,12 @@ mod tests {
             ("theta,p\n0,1\n180,1\n", 1, "header"),
             ("angle_deg,phase\n0,0\n180,0\n", 3, "zero"),
         ] {
-            let (got_line, reason) = PhaseTable::parse(text).unwrap_err();
+            let (got_line, reason) = SpectralPhaseTable::parse(text).unwrap_err();
             assert_eq!(got_line, line, "{text:?}: {reason}");
             assert!(reason.contains(needle), "{text:?}: {reason}");
         }
-        let table = PhaseTable::parse("# comment\nangle_deg, phase\n\n0, 2\n180, 2\n").unwrap();
-        assert!((table.eval(0.3) - 1.0 / (4.0 * PI)).abs() < 1e-15);
+        let table =
+            SpectralPhaseTable::parse("# comment\nangle_deg, phase\n\n0, 2\n180, 2\n").unwrap();
+        assert!((table.eval(0.3, 550.0) - 1.0 / (4.0 * PI)).abs() < 1e-15);
     }
 }

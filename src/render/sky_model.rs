@@ -202,6 +202,17 @@ impl Optics<'_> {
         out
     }
 
+    /// These optics with the sun at solar-zenith cosine `mu_s` above a
+    /// point on the z axis (in the x–z plane), and that sun's direction.
+    fn with_sun_at(&self, mu_s: f64) -> (DVec3, Self) {
+        let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
+        let optics = Optics {
+            sun_direction: sun,
+            ..*self
+        };
+        (sun, optics)
+    }
+
     /// The phase functions (P_R, P_A) at each wavelength at cosine `mu`
     /// between the ray and the sun ([`Phases`]).
     fn phases(&self, mu: f64) -> (Spectrum, Spectrum) {
@@ -296,12 +307,7 @@ impl MsTable {
         let per_zenith: Vec<Vec<[Spectrum; 2]>> = (0..MS_ZENITHS)
             .into_par_iter()
             .map(|k| {
-                let mu_s = zenith_cosine_of(k as f64);
-                let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
-                let cell_optics = Optics {
-                    sun_direction: sun,
-                    ..*optics
-                };
+                let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
                 // Views at ν from the sun, in the plane of the sun and the
                 // zenith and across it, each weighted ½.
                 let (toward, across) = (DVec3::new(-sun.z, 0.0, sun.x), DVec3::Y);
@@ -431,12 +437,7 @@ impl SkyIrradiance {
         let values = (0..MS_ZENITHS)
             .into_par_iter()
             .map(|k| {
-                let mu_s = zenith_cosine_of(k as f64);
-                let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
-                let cell_optics = Optics {
-                    sun_direction: sun,
-                    ..*optics
-                };
+                let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
                 let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1.0);
                 let mut e = [0.0; NODES];
                 for &dir in &up {
