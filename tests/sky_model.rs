@@ -5,7 +5,8 @@
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
-use skyrender::render::service::{model_weight, render_blocking, RenderService};
+use skyrender::output::RgbImage;
+use skyrender::render::service::{model_weight, render_blocking, RenderService, MODEL_ERROR};
 use skyrender::render::Renderer;
 use skyrender::Scene;
 
@@ -65,10 +66,20 @@ fn the_model_is_within_its_measured_error_of_the_path_tracer() {
 
 #[test]
 fn the_preview_shows_the_model_first_and_blends_it_out() {
-    assert_eq!(model_weight(0, 64), 1.0);
-    assert_eq!(model_weight(2, 64), 0.5);
-    assert!(model_weight(200, 1024) < 0.01);
-    assert_eq!(model_weight(64, 64), 0.0);
+    // The weight from the images: none where the passes agree with the
+    // model within its error, ½ where the passes' noise equals it, most
+    // where they are far noisier.
+    let image = |values: &[f32]| RgbImage {
+        width: values.len() as u32,
+        height: 1,
+        pixels: values.iter().map(|&v| [v; 3]).collect(),
+    };
+    let model = image(&[1.0, 1.0, 1.0, 1.0]);
+    assert_eq!(model_weight(&image(&[1.1, 0.9, 1.1, 0.9]), &model), 0.0);
+    let m = MODEL_ERROR as f32;
+    let even = model_weight(&image(&[1.0 + 2.0 * m, 1.0 - 2.0 * m, 1.0, 1.0]), &model);
+    assert!((even - 0.5).abs() < 1e-6, "{even}");
+    assert!(model_weight(&image(&[11.0, 0.0, 0.0, 0.0]), &model) > 0.99);
     // Large enough that a pass takes far longer than the polling interval,
     // so the model's frame cannot come and go unseen.
     let mut scene = Scene::preset("sunset").unwrap();
@@ -83,7 +94,15 @@ fn the_preview_shows_the_model_first_and_blends_it_out() {
         if let Some(frame) = service.latest().filter(|f| f.epoch == epoch) {
             if seen.last() != Some(&frame.spp) {
                 seen.push(frame.spp);
-                assert_eq!(frame.model_weight, model_weight(frame.spp, 3));
+                let expected_range = if frame.spp == 0 { 1.0..=1.0 } else { 0.0..=1.0 };
+                assert!(
+                    expected_range.contains(&frame.model_weight),
+                    "{}",
+                    frame.model_weight
+                );
+                if frame.finished {
+                    assert_eq!(frame.model_weight, 0.0);
+                }
                 // Finite; the model's luminance never negative (a colour
                 // outside Rec.709 may have a negative channel, and a pass
                 // under the control variate a negative pixel).

@@ -81,16 +81,42 @@ pub struct Frame {
     pub model_weight: f64,
 }
 
-/// The approximate sky model's share in a preview frame after `spp` of
-/// `target` passes: 2/(2 + spp), 0 when finished. The model is smooth but
-/// off by 10–40 % (`BENCHMARKS.md`), a pass unbiased but noisy; the share
-/// halves by the second pass and is under 1 % after 200. Only the app's
-/// preview blends: renders and exports are the passes alone.
-pub fn model_weight(spp: u32, target: u32) -> f64 {
-    if spp >= target {
+/// The sky model's typical RMS error over a whole image, relative to its
+/// mean luminance: 13–35 % over the bench's scenes (`BENCHMARKS.md`, "The
+/// preview's first frame").
+pub const MODEL_ERROR: f64 = 0.2;
+
+/// The approximate sky model's share in a preview frame, from the passes'
+/// image so far (`passes`) and the model's (`model`). With independent
+/// errors, the model's bias m and the passes' noise σ, the blend
+/// (1 − w) passes + w model has the least mean squared error at
+/// w = σ²/(σ² + m²). The squared RMS difference between the two images,
+/// relative to the mean, D² ≈ m² + σ², gives σ² ≈ D² − m²; with m =
+/// [`MODEL_ERROR`], w = 1 − m²/D² (0 where D ≤ m). At midday a first pass
+/// is off by about 65 % and the model keeps 90 % of the frame; at twilight,
+/// 1 100 %, it keeps all but 0.03 %, until enough passes are in. Only the
+/// app's preview blends: renders and exports are the passes alone.
+pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
+    let y = |p: &[f32; 3]| {
+        0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])
+    };
+    let (mut diff2, mut sum, mut n) = (0.0, 0.0, 0.0);
+    for (p, m) in passes.pixels.iter().zip(&model.pixels) {
+        let (a, b) = (y(p), y(m));
+        if a.is_finite() && b.is_finite() {
+            diff2 += (a - b) * (a - b);
+            sum += b;
+            n += 1.0;
+        }
+    }
+    if n == 0.0 || sum <= 0.0 {
+        return 0.0;
+    }
+    let relative2 = diff2 / n / (sum / n).powi(2);
+    if relative2 <= MODEL_ERROR * MODEL_ERROR {
         0.0
     } else {
-        2.0 / (2.0 + f64::from(spp))
+        1.0 - MODEL_ERROR * MODEL_ERROR / relative2
     }
 }
 
@@ -290,7 +316,11 @@ fn publish(
     model: &RgbImage,
 ) {
     let mut image = film.to_rgb();
-    let w = model_weight(spp, target);
+    let w = if spp >= target {
+        0.0
+    } else {
+        model_weight(&image, model)
+    };
     if w > 0.0 {
         for (p, m) in image.pixels.iter_mut().zip(&model.pixels) {
             *p =

@@ -53,6 +53,14 @@ impl StatusBar<'_> {
                         "Samples per pixel accumulated / target (a draft is a quick \
                          low-resolution first look after a change)",
                     );
+                    if f.model_weight > 0.0 {
+                        ui.label(format!("model {:.0} %", f.model_weight * 100.0))
+                            .on_hover_text(
+                                "Share of the approximate sky model in the image: the first \
+                                 frame is the model alone, and it fades as the passes' noise \
+                                 falls below its error (exports never contain it)",
+                            );
+                    }
                     ui.label(format!(
                         "{:.2} M camera paths/s",
                         f.paths_per_second() / 1e6
