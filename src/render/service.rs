@@ -92,10 +92,10 @@ pub const MODEL_ERROR: f64 = 0.2;
 /// (1 − w) passes + w model has the least mean squared error at
 /// w = σ²/(σ² + m²). The squared RMS difference between the two images,
 /// relative to the mean, D² ≈ m² + σ², gives σ² ≈ D² − m²; with m =
-/// [`MODEL_ERROR`], w = 1 − m²/D² (0 where D ≤ m). At midday a first pass
-/// is off by about 65 % and the model keeps 90 % of the frame; at twilight,
-/// 1 100 %, it keeps all but 0.03 %, until enough passes are in. Only the
-/// app's preview blends: renders and exports are the passes alone.
+/// [`MODEL_ERROR`], w = 1 − m²/D² (0 where D ≤ m): the noisier the
+/// passes, the more of the frame the model keeps, until enough passes are
+/// in. Only the app's preview blends: renders and exports are the passes
+/// alone.
 pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
     let y = |p: &[f32; 3]| {
         0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])

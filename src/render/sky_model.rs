@@ -18,9 +18,10 @@
 //!    factor for the orders past the second (f_ms the share of isotropic
 //!    light a point's surroundings scatter back to it; his eqs. 5–10).
 //!    Hillaire takes this light as isotropic; at low sun most of it is the
-//!    haze's forward scattering about the sun (the isotropic table left
-//!    the sky 1°–40° from the setting sun a third too dark), so the second
-//!    scattering keeps the phase functions.
+//!    haze's forward scattering about the sun, which an isotropic table
+//!    spreads over the whole sky (the sky near the setting sun then comes
+//!    out far too dark: `BENCHMARKS.md`), so the second scattering keeps
+//!    the phase functions.
 //! 3. *The sky seen from the observer* is smooth in direction once the
 //!    phase functions are taken out: along a view ray the angle to the sun
 //!    is fixed, so the single scattering is P_R(θ) A_R + P_A(θ) A_A with
@@ -37,7 +38,7 @@
 //!
 //! It is an approximation, never a reference: its error against the
 //! converged path tracer is measured per preset (`skyrender bench`,
-//! `model_error`; `BENCHMARKS.md`).
+//! `first_frame_error`; `BENCHMARKS.md`).
 
 use std::cell::RefCell;
 use std::f64::consts::PI;
