@@ -80,6 +80,9 @@ fn the_preview_shows_the_model_first_and_blends_it_out() {
     let even = model_weight(&image(&[1.0 + 2.0 * m, 1.0 - 2.0 * m, 1.0, 1.0]), &model);
     assert!((even - 0.5).abs() < 1e-6, "{even}");
     assert!(model_weight(&image(&[11.0, 0.0, 0.0, 0.0]), &model) > 0.99);
+    // The sun's disc (the model has none) does not hold the model in.
+    let with_disc = image(&[1.0e6, 1.05, 0.95, 1.0]);
+    assert_eq!(model_weight(&with_disc, &model), 0.0);
     // Large enough that a pass takes far longer than the polling interval,
     // so the model's frame cannot come and go unseen.
     let mut scene = Scene::preset("sunset").unwrap();

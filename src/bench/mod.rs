@@ -272,6 +272,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             .fold(f64::NAN, f64::max),
             first_frame_error: run.model_error,
             first_pass_error: run.first_pass_error,
+            preview_error_2s: run.preview_error_2s,
         });
         let wavelengths = scene.render.integrator.wavelengths_per_path;
         details.push(SceneDetail {
@@ -354,7 +355,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         ),
         "time_to_2pct_s / time_to_1pct_s: extrapolated from noise_at_budget and the time actually spent, assuming noise ∝ 1/sqrt(time)".into(),
         "noise_ground_at_budget / noise_whole_at_budget: the same noise over the pixels whose centre's ray meets the ground, and over every pixel with a ray (lit, above the air), sun cone excluded; time_to_1pct_4k_s: time to 1 % over the whole image of a 4096x2048 render, extrapolated (noise ∝ 1/sqrt(time), time ∝ pixels)".into(),
-        "noise_neighbour_correlation: the largest correlation of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of the preview's first frame, the approximate sky model, minus the mean of A and B over the whole image, relative to the mean, the reference's own noise removed in quadrature; first_pass_error: the same for one Monte Carlo pass (seed + 2)".into(),
+        "noise_neighbour_correlation: the largest correlation of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of the preview's first frame, the approximate sky model, minus the mean of A and B over the whole image, relative to the mean, the reference's own noise removed in quadrature; first_pass_error: the same for one Monte Carlo pass (seed + 2); preview_error_2s: the same for what the preview shows 2 s after a change (the passes of that render so far blended with the model by model_weight)".into(),
         format!(
             "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
@@ -666,6 +667,7 @@ mod tests {
                     "noise_neighbour_correlation",
                     "noise_whole_at_budget",
                     "paths_per_s",
+                    "preview_error_2s",
                     "scene",
                     "threads",
                     "time_to_1pct_4k_s",

@@ -47,6 +47,9 @@ pub struct SceneResult {
     /// RMS error of the first Monte Carlo pass against the reference (see
     /// [`NoiseRun::first_pass_error`]).
     pub first_pass_error: f64,
+    /// RMS error of what the preview shows 2 s after a change (see
+    /// [`NoiseRun::preview_error_2s`]).
+    pub preview_error_2s: f64,
 }
 
 /// Everything else measured per scene.
@@ -244,13 +247,16 @@ pub fn format_report(report: &Report) -> String {
     );
     let _ = writeln!(
         out,
-        "| scene | noise sky | noise ground | noise whole | 4K to 1 % | corr. rows | corr. columns | corr. circles | first-frame (model) error | first-pass error |"
+        "| scene | noise sky | noise ground | noise whole | 4K to 1 % | corr. rows | corr. columns | corr. circles | first-frame (model) error | first-pass error | preview error at 2 s |"
     );
-    let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|");
+    let _ = writeln!(
+        out,
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+    );
     for (r, d) in report.scenes.iter().zip(&report.details) {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.scene,
             pct(r.noise_at_budget),
             pct(r.noise_ground_at_budget),
@@ -261,6 +267,7 @@ pub fn format_report(report: &Report) -> String {
             num(d.run.circle_correlation, 3),
             pct(r.first_frame_error),
             pct(r.first_pass_error),
+            pct(r.preview_error_2s),
         );
     }
     let _ = writeln!(out);

@@ -86,6 +86,11 @@ pub struct Frame {
 /// preview's first frame").
 pub const MODEL_ERROR: f64 = 0.2;
 
+/// See [`model_weight`]: a pixel of the passes this many times the model's
+/// is the sun's disc (10⁵–10⁶ times the sky) or a rare bright sample, not
+/// the spread that sets the blend.
+pub const OUTLIER_RATIO: f64 = 100.0;
+
 /// The approximate sky model's share in a preview frame, from the passes'
 /// image so far (`passes`) and the model's (`model`). With independent
 /// errors, the model's bias m and the passes' noise σ, the blend
@@ -94,8 +99,10 @@ pub const MODEL_ERROR: f64 = 0.2;
 /// relative to the mean, D² ≈ m² + σ², gives σ² ≈ D² − m²; with m =
 /// [`MODEL_ERROR`], w = 1 − m²/D² (0 where D ≤ m): the noisier the
 /// passes, the more of the frame the model keeps, until enough passes are
-/// in. Only the app's preview blends: renders and exports are the passes
-/// alone.
+/// in. Pixels where the passes exceed the model [`OUTLIER_RATIO`]-fold are
+/// left out of D: the sun's disc, which the model lacks, would otherwise
+/// hold the weight at 1 whenever the sun is in view. Only the app's
+/// preview blends: renders and exports are the passes alone.
 pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
     let y = |p: &[f32; 3]| {
         0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])
@@ -103,7 +110,7 @@ pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
     let (mut diff2, mut sum, mut n) = (0.0, 0.0, 0.0);
     for (p, m) in passes.pixels.iter().zip(&model.pixels) {
         let (a, b) = (y(p), y(m));
-        if a.is_finite() && b.is_finite() {
+        if a.is_finite() && b.is_finite() && a <= OUTLIER_RATIO * b.max(0.0) {
             diff2 += (a - b) * (a - b);
             sum += b;
             n += 1.0;
