@@ -153,7 +153,7 @@ pub fn sky_horizontal_illuminance(scene: &Scene, image: &RgbImage) -> Option<f64
                 continue;
             };
             let [r, g, b] = image.pixels[y * w + x].map(f64::from);
-            let luminance = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+            let luminance = crate::spectrum::rec709_luminance([r, g, b]);
             let angle = dir.angle_between(sun);
             if (exclusion..2.0 * exclusion).contains(&angle) && luminance.is_finite() {
                 ring_sum += luminance;

@@ -86,6 +86,11 @@ impl ColourMatching {
         )
     }
 
+    /// The table's wavelengths, nm: the grid [`Self::integrate`] samples.
+    pub fn grid_nm(&self) -> impl Iterator<Item = f64> + '_ {
+        (0..self.xyz.len()).map(|i| self.first_nm + i as f64 * self.step_nm)
+    }
+
     /// x̄, ȳ, z̄ at `wavelength_nm` (linear; zero outside the table).
     pub fn xyz_bar(&self, wavelength_nm: f64) -> [f64; 3] {
         let x = (wavelength_nm - self.first_nm) / self.step_nm;

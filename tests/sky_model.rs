@@ -8,6 +8,7 @@ use std::time::{Duration, Instant};
 use skyrender::output::RgbImage;
 use skyrender::render::service::{model_weight, render_blocking, RenderService, MODEL_ERROR};
 use skyrender::render::Renderer;
+use skyrender::spectrum::rec709_luminance;
 use skyrender::Scene;
 
 /// RMS of (model − reference) over the pixels more than 5° from the sun,
@@ -25,9 +26,7 @@ fn model_error(name: &str) -> f64 {
         .unwrap();
     let reference = film.to_rgb();
     let sun = renderer.sun_direction();
-    let y = |p: [f32; 3]| {
-        0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])
-    };
+    let y = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
     let (mut diff2, mut sum, mut n) = (0.0, 0.0, 0.0);
     for (i, (m, r)) in model.pixels.iter().zip(&reference.pixels).enumerate() {
         let (px, py) = ((i % 48) as f64 + 0.5, (i / 48) as f64 + 0.5);
@@ -112,8 +111,9 @@ fn the_preview_shows_the_model_first_and_blends_it_out() {
                 let pixels = &frame.image.pixels;
                 assert!(pixels.iter().flatten().all(|v| v.is_finite()));
                 if frame.spp == 0 {
-                    let y = |p: &[f32; 3]| 0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2];
-                    assert!(pixels.iter().all(|p| y(p) >= 0.0));
+                    assert!(pixels
+                        .iter()
+                        .all(|p| rec709_luminance(p.map(f64::from)) >= 0.0));
                 }
             }
             if frame.finished {

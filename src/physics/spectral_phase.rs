@@ -42,14 +42,6 @@ pub struct SpectralPhaseTable {
 }
 
 impl SpectralPhaseTable {
-    /// One phase function at every wavelength.
-    pub fn grey(table: PhaseTable) -> Self {
-        Self {
-            wavelengths_nm: vec![f64::NAN],
-            tables: vec![table],
-        }
-    }
-
     /// Whether the phase function varies with wavelength (more than one
     /// node).
     pub fn is_spectral(&self) -> bool {

@@ -104,9 +104,7 @@ pub const OUTLIER_RATIO: f64 = 100.0;
 /// hold the weight at 1 whenever the sun is in view. Only the app's
 /// preview blends: renders and exports are the passes alone.
 pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
-    let y = |p: &[f32; 3]| {
-        0.2126 * f64::from(p[0]) + 0.7152 * f64::from(p[1]) + 0.0722 * f64::from(p[2])
-    };
+    let y = |p: &[f32; 3]| crate::spectrum::rec709_luminance(p.map(f64::from));
     let (mut diff2, mut sum, mut n) = (0.0, 0.0, 0.0);
     for (p, m) in passes.pixels.iter().zip(&model.pixels) {
         let (a, b) = (y(p), y(m));

@@ -40,7 +40,6 @@
 //! converged path tracer is measured per preset (`skyrender bench`,
 //! `first_frame_error`; `BENCHMARKS.md`).
 
-use std::cell::RefCell;
 use std::f64::consts::PI;
 
 use glam::DVec3;
@@ -590,13 +589,8 @@ fn xyz_weights(
     cmf: &ColourMatching,
     nodes: &[f64],
 ) -> [[f64; 3]; NODES] {
-    // The grid's wavelengths, then the sun there, four at a time.
-    let grid = RefCell::new(Vec::new());
-    cmf.integrate(|w| {
-        grid.borrow_mut().push(w);
-        0.0
-    });
-    let grid = grid.into_inner();
+    // The sun at the grid's wavelengths, four at a time.
+    let grid: Vec<f64> = cmf.grid_nm().collect();
     let sun: Vec<f64> = grid
         .chunks(LANES)
         .flat_map(|w| {
@@ -606,10 +600,8 @@ fn xyz_weights(
         .collect();
     let step = nodes[1] - nodes[0];
     std::array::from_fn(|k| {
-        let index = std::cell::Cell::new(0);
         let xyz = cmf.integrate(|w| {
-            let i = index.get();
-            index.set(i + 1);
+            let i = grid.partition_point(|&g| g < w);
             let hat = (1.0 - (w - nodes[k]).abs() / step).max(0.0);
             // Beyond the end nodes the end node holds the response.
             let hat = if (k == 0 && w < nodes[0]) || (k == NODES - 1 && w > nodes[NODES - 1]) {
