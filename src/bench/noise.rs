@@ -174,7 +174,7 @@ pub struct NoiseRun {
     /// The same error for the approximate sky model
     /// ([`crate::render::sky_model`]): the preview's first frame.
     pub model_error: f64,
-    /// The same error for what the preview shows [`PREVIEW_SECONDS`] after
+    /// The same error for what the preview shows `PREVIEW_SECONDS` (2 s) after
     /// a change: the passes so far blended with the model
     /// ([`crate::render::service::model_weight`]).
     pub preview_error_2s: f64,
