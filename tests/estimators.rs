@@ -7,9 +7,9 @@ use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::sun;
 use skyrender::plan::{Conditions, TechniquePlan};
-use skyrender::render::control::RadianceTable;
 use skyrender::render::guide::SkyGuide;
 use skyrender::render::sunlight::CameraDensities;
+use skyrender::render::tables::Tables;
 use skyrender::render::{
     direction_from_az_el, Integrator, IntegratorOptions, Lanes, Medium, SpectralLanes,
     TransmittanceEstimator, LANES,
@@ -785,19 +785,19 @@ fn the_control_variate_is_unbiased() {
     for ((sun_az, sun_el), (az, el)) in cases {
         let sun_dir = direction_from_az_el(sun_az, sun_el);
         let view = direction_from_az_el(az, el);
-        let camera = CameraDensities::new(&medium, origin, sun_dir);
-        let guide = SkyGuide::new(&medium, sun_dir);
-        let table = RadianceTable::new(
-            medium.planet_radius_m,
-            medium.top_radius_m,
-            sun_dir,
-            (360.0, 830.0),
+        let controlled = plan_at(
+            &IntegratorOptions {
+                control_variate: Some(true),
+                ..IntegratorOptions::default()
+            },
+            sun_el,
+            &atmosphere.params,
         );
+        assert!(controlled.control_variate);
+        // The tables as the renderer builds them for the controlled plan.
+        let tables = Tables::new(&medium, &controlled, origin, sun_dir, (360.0, 830.0));
         let run = |plan: TechniquePlan, paths: u32, streams: u64| {
-            let integrator = Integrator::new(&medium, &plan, sun_dir)
-                .with_camera_densities(&camera)
-                .with_sky_guide(&guide)
-                .with_control(&table);
+            let integrator = tables.integrator(&medium, &plan, sun_dir);
             estimate(streams, paths, |rng| {
                 integrator.radiance(origin, view, &lanes, rng)
             })
@@ -812,15 +812,6 @@ fn the_control_variate_is_unbiased() {
             40_000,
             600,
         );
-        let controlled = plan_at(
-            &IntegratorOptions {
-                control_variate: Some(true),
-                ..IntegratorOptions::default()
-            },
-            sun_el,
-            &atmosphere.params,
-        );
-        assert!(controlled.control_variate);
         let what = format!("sun {sun_el}°, view ({az}, {el}), all orders");
         // Standard errors 0.5 % by day, 2–3 % at sunset, 5 % at twilight.
         let power = if sun_el < 0.0 { 0.08 } else { 0.04 };

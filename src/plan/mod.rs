@@ -280,7 +280,7 @@ impl TechniquePlan {
     }
 
     /// The first (draft) pass's plan: plain delta-tracked camera paths and
-    /// segments, no control variate, no guided directions, independent
+    /// segments, no control variate, no guided directions, no splitting, independent
     /// random numbers (the Sobol prefix costs ~4 % of a path and one pass
     /// gains nothing from stratification across passes), and shadow rays
     /// through the shells' chords (the column table takes ~20 ms to build:
@@ -307,6 +307,12 @@ impl TechniquePlan {
             directions: DirectionPlan {
                 sky_guide: 0.0,
                 ..self.directions
+            },
+            // Splitting pays for its bookkeeping where the segments find
+            // the sunlit air; the draft's delta-tracked paths go without.
+            termination: TerminationPlan {
+                splitting: false,
+                ..self.termination
             },
             control_variate: false,
             sampler: Sampler::Independent,

@@ -39,6 +39,8 @@ use std::sync::OnceLock;
 use glam::DVec3;
 
 use super::directions::{LocalAxes, SunCells};
+use super::guide::SkyGuide;
+use super::medium::Medium;
 
 /// Highest degree of the expansion.
 pub const L_MAX: usize = 8;
@@ -54,9 +56,27 @@ pub const NODES: usize = 8;
 /// One expansion per wavelength node, per unit solar irradiance (sr⁻¹).
 pub type CellCoefficients = [[f64; COEFFICIENTS]; NODES];
 
+/// What fills a [`RadianceTable`]'s cells on first use: the once-scattered
+/// light arriving at a cell's central point, projected on the basis. The
+/// render's tables supply it ([`crate::render::tables`]); the table itself
+/// knows nothing of how light is estimated.
+pub trait CellProjection: Send + Sync {
+    /// The expansions of `table`'s cell (altitude `i`, solar zenith `k`) in
+    /// `medium`, with the sky guide `guide` where the render has one.
+    fn project(
+        &self,
+        medium: &Medium,
+        guide: Option<&SkyGuide>,
+        table: &RadianceTable,
+        i: usize,
+        k: usize,
+    ) -> CellCoefficients;
+}
+
 /// The table of expansions per (altitude, solar zenith) cell.
 pub struct RadianceTable {
     sun_direction: DVec3,
+    projection: Box<dyn CellProjection>,
     layout: SunCells,
     first_nm: f64,
     step_nm: f64,
@@ -193,15 +213,17 @@ pub type Expansion = [f64; COEFFICIENTS];
 impl RadianceTable {
     /// An empty table for an atmosphere between `planet_radius_m` and
     /// `top_radius_m`, the sun along `sun_direction`, wavelength nodes over
-    /// `range_nm`.
+    /// `range_nm`, its cells filled by `projection` on first use.
     pub fn new(
         planet_radius_m: f64,
         top_radius_m: f64,
         sun_direction: DVec3,
         (from_nm, to_nm): (f64, f64),
+        projection: Box<dyn CellProjection>,
     ) -> Self {
         Self {
             sun_direction,
+            projection,
             layout: SunCells::new(
                 planet_radius_m,
                 top_radius_m,
@@ -239,13 +261,14 @@ impl RadianceTable {
     /// as good a control as any fixed one (the estimate is unbiased for
     /// each draw, and the draws are independent of the path); drawing
     /// saves the interpolation's eight expansions per lane. Missing cells
-    /// are built by `build(i, k)`.
+    /// are projected in `medium` (with `guide`) by the table's
+    /// [`CellProjection`].
     pub fn pick<const N: usize>(
         &self,
         x: DVec3,
         wavelengths_nm: &[f64; N],
         (u_cell, u_node): (f64, f64),
-        build: impl Fn(usize, usize) -> CellCoefficients,
+        (medium, guide): (&Medium, Option<&SkyGuide>),
     ) -> Picked<'_, N> {
         let ((i, fa), (k, fs)) = self.layout.about(x);
         // Altitude first (u < 1 − fa: lower), then solar zenith, from one
@@ -256,7 +279,8 @@ impl RadianceTable {
             (i + 1, (u_cell - (1.0 - fa)) / fa)
         };
         let k = if u < 1.0 - fs { k } else { k + 1 };
-        let cell = self.cells[self.layout.index(i, k)].get_or_init(|| build(i, k));
+        let cell = self.cells[self.layout.index(i, k)]
+            .get_or_init(|| self.projection.project(medium, guide, self, i, k));
         let nodes = wavelengths_nm.map(|nm| {
             let u = ((nm - self.first_nm) / self.step_nm).clamp(0.0, (NODES - 1) as f64);
             let n = (u as usize).min(NODES - 2);

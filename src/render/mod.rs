@@ -35,6 +35,7 @@ pub mod sky_model;
 pub mod splatting;
 pub mod sun_columns;
 pub mod sunlight;
+pub mod tables;
 pub mod tracker;
 pub mod transmittance;
 pub mod trig;

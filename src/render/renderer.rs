@@ -2,7 +2,6 @@
 //! camera, technique plan and tables), and its passes over a [`Film`].
 
 use std::sync::atomic::{AtomicU64, Ordering};
-use std::sync::{Arc, OnceLock};
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -25,18 +24,17 @@ use super::film::Film;
 use super::integrator::Integrator;
 use super::lanes::{LaneTable, SolarSource};
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
-use super::{circles, control, exact, film, film_layers, film_spectral, guide, sunlight};
+use super::tables::Tables;
+use super::{circles, exact, film, film_layers, film_spectral};
 use crate::atmosphere::Atmosphere;
 use crate::plan::Conditions;
 use crate::plan::{Sampler, TechniquePlan};
 use crate::rng::{Rng, SOBOL_POINTS};
 use crate::scene::{Scene, SceneError};
 use crate::spectrum::{ColourMatching, K_M};
-use circles::CircleSplatter;
 use exact::ExactSum;
 use film_layers::SampleSplit;
 use film_spectral::SampleLanes;
-use sunlight::CameraDensities;
 
 /// (√5 − 1)/2: the additive recurrence with this step is the most evenly
 /// spread 1-D sequence (Weyl; the three-distance theorem).
@@ -73,26 +71,14 @@ pub struct Renderer {
     pub(super) lane_table: LaneTable,
     pub(super) sun_direction: DVec3,
     pub(super) observer_m: DVec3,
-    /// Expected-sunlight densities of camera rays, built per view direction
-    /// on first use.
-    pub(super) camera_densities: CameraDensities,
-    /// Incoming once-scattered light by direction at scattering points,
-    /// built per (altitude, solar zenith) cell on first use; only for the
-    /// options that use it (`sky_guide`, `shadow_samples`,
-    /// `sunlight_samples`, `camera_importance`); shared with the camera
-    /// densities, which read its skylight as their importance.
-    pub(super) sky_guide: Option<Arc<guide::SkyGuide>>,
-    /// The once-scattered light's table for the control variate, where the
-    /// scene's options turn it on (`control_variate`).
-    pub(super) control: Option<control::RadianceTable>,
+    /// The tables the plan reads, built on first use.
+    pub(super) tables: Tables,
     /// The scene's techniques, every choice made ([`TechniquePlan::new`]).
     pub(super) plan: TechniquePlan,
     /// The first pass's techniques ([`TechniquePlan::first_pass`]).
     pub(super) draft_plan: TechniquePlan,
     /// The pixel pairs the film reads together (`mirror_symmetry`).
     pub(super) mirror: Option<Mirror>,
-    /// The splatter, built on first use (after the draft pass).
-    pub(super) circles: OnceLock<Option<CircleSplatter>>,
 }
 
 /// Where a pixel takes its low-discrepancy numbers
@@ -146,34 +132,9 @@ impl Renderer {
             &scene.render.integrator,
             &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles),
         );
-        let sky_guide = plan
-            .needs_sky_guide()
-            .then(|| Arc::new(guide::SkyGuide::new(&medium, sun_direction)));
-        let camera_densities = CameraDensities::new(&medium, observer_m, sun_direction);
-        let camera_importance = Some(plan.camera.importance).filter(|&share| share > 0.0);
-        let camera_densities = match (&sky_guide, camera_importance) {
-            (Some(guide), Some(share)) => {
-                let guide = Arc::clone(guide);
-                camera_densities.with_importance(
-                    share,
-                    Arc::new(move |medium: &Medium, x: DVec3| guide.skylight(medium, x)),
-                )
-            }
-            _ => camera_densities,
-        };
         Ok(Self {
-            camera_densities,
-            sky_guide,
-            control: plan.control_variate.then(|| {
-                control::RadianceTable::new(
-                    medium.planet_radius_m,
-                    medium.top_radius_m,
-                    sun_direction,
-                    cmf.range_nm(),
-                )
-            }),
+            tables: Tables::new(&medium, &plan, observer_m, sun_direction, cmf.range_nm()),
             mirror: mirror_pairs(scene),
-            circles: OnceLock::new(),
             draft_plan: plan.first_pass(),
             plan,
             observer_m,
@@ -237,16 +198,8 @@ impl Renderer {
         } else {
             &self.plan
         };
-        let integrator = Integrator::new(&self.medium, plan, self.sun_direction)
-            .with_camera_densities(&self.camera_densities);
-        let integrator = match &self.sky_guide {
-            Some(guide) => integrator.with_sky_guide(guide),
-            None => integrator,
-        };
-        match &self.control {
-            Some(table) => integrator.with_control(table),
-            None => integrator,
-        }
+        self.tables
+            .integrator(&self.medium, plan, self.sun_direction)
     }
 
     /// Wavelengths each path carries (`wavelengths_per_path`, 1–[`LANES`]).
@@ -629,14 +582,18 @@ mod tests {
         // one; by day it is the plain one.
         for (preset, weighted) in [("twilight", true), ("sunset", true), ("midday", false)] {
             let r = Renderer::new(&Scene::preset(preset).unwrap()).unwrap();
-            let plain = CameraDensities::new(&r.medium, r.observer_m, r.sun_direction);
+            let plain = crate::render::sunlight::CameraDensities::new(
+                &r.medium,
+                r.observer_m,
+                r.sun_direction,
+            );
             let dir = direction_from_az_el(r.scene.sun.azimuth_deg, 10.0);
             let span = r.medium.span(r.observer_m, dir).unwrap();
-            let own = r.camera_densities.density(&r.medium, dir, span);
+            let own = r.tables.camera_densities.density(&r.medium, dir, span);
             let plain = plain.density(&r.medium, dir, span);
             let differs = [0.25, 0.5, 0.75].iter().any(|&u| {
-                own.sample(sunlight::Component::Skylight, u)
-                    != plain.sample(sunlight::Component::Skylight, u)
+                own.sample(crate::render::sunlight::Component::Skylight, u)
+                    != plain.sample(crate::render::sunlight::Component::Skylight, u)
             });
             assert_eq!(differs, weighted, "{preset}");
         }

@@ -5,7 +5,7 @@
 
 use rayon::prelude::*;
 
-use super::circles::{CircleSplatter, SPLATS_PER_WALK};
+use super::circles::SPLATS_PER_WALK;
 use super::film_spectral::Splat;
 use super::{Film, Integrator, Renderer, Sampler};
 use crate::rng::{mix64, Rng, SOBOL_POINTS};
@@ -62,15 +62,12 @@ impl Renderer {
         // Capped: each holds up to CHUNK × SPLATS_PER_WALK splats (512 KiB)
         // until added.
         let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
-        let splatter = self.circles.get_or_init(|| {
-            CircleSplatter::new(
-                &self.medium,
-                &self.integrator(1),
-                self.sky_guide.as_deref(),
-                &self.camera,
-                self.observer_m,
-            )
-        });
+        let splatter = self.tables.splatter(
+            &self.medium,
+            &self.integrator(1),
+            &self.camera,
+            self.observer_m,
+        );
         let Some(splatter) = splatter else {
             return (0, 0);
         };

@@ -10,7 +10,7 @@ use super::{
 impl Integrator<'_> {
     /// The camera ray's segment, estimated through in-scattering points from
     /// the cached expected-sunlight density ([`CameraDensities`]) like one
-    /// segment of [`Self::trace_sunlit`]; returns the vertices the path
+    /// segment of [`Self::sunlit_segment`]; returns the vertices the path
     /// branches into.
     pub(super) fn camera_segment(
         &self,

@@ -15,6 +15,12 @@
 //! the weight ≈ the chance that light scatters at all; roulette plays on the
 //! weight relative to that start.
 //!
+//! **One path loop** (`path`): every path — a camera branch, a splatted
+//! walk, a control cell's projection — alternates a segment estimate, the
+//! plan's choice among the estimators below, and one vertex step where
+//! the new direction, roulette or splitting (`termination`) and the
+//! control variate are applied.
+//!
 //! **Estimator.** Along every other segment a majorant process proposes
 //! tentative collisions (delta tracking over shell-wise majorants; see
 //! [`super::medium`]). At each tentative collision at distance t the
@@ -105,16 +111,18 @@
 mod camera_ray;
 mod control_variate;
 mod ground;
+mod path;
 mod scatter_directions;
 mod segments;
 mod sun_disc;
+mod termination;
 
 use std::f64::consts::PI;
 
 use glam::DVec3;
 
 use super::columns::FixedStart;
-use super::control::{CellCoefficients, Frame, Picked, RadianceTable, COEFFICIENTS, L_MAX, NODES};
+use super::control::{Frame, Picked, RadianceTable, L_MAX};
 use super::directions::orthonormal_basis;
 use super::guide::{GuideAt, SkyGuide};
 use super::medium::Span;
@@ -123,7 +131,7 @@ use super::sunlight::{CachedRayDensity, CameraDensities, Component, InScatterDis
 use super::trig::sin_cos_turns;
 use crate::physics::aerosol::MomentsOverWavelength;
 use crate::physics::{rayleigh, sun};
-use crate::plan::{TechniquePlan, MAX_BRANCHES, MAX_FORCED_COLLISION_DEPTH, MAX_SUNLIGHT_SAMPLES};
+use crate::plan::{TechniquePlan, MAX_BRANCHES, MAX_SUNLIGHT_SAMPLES};
 use crate::rng::Rng;
 
 /// σ_s,R P_R + σ_s,A P_A of lane `j` at cosine `mu`, given the aerosol's
@@ -171,49 +179,8 @@ impl std::ops::DerefMut for Light {
     }
 }
 
-/// Scattering vertices become paths longer than this only through Russian
-/// roulette with survival ≤ 0.9, so paths end with probability one.
-const ROULETTE_CAP_DEPTH: u32 = MAX_FORCED_COLLISION_DEPTH;
-/// Russian roulette leaves a path alone until its weight, relative to where
-/// it started, falls below this; survivors carry this weight. At 1
-/// (roulette on any loss) a ground bounce of albedo 0.3 killed 70 % of the
-/// paths and tripled the weight of the rest, which cost noise in every
-/// scene (`BENCHMARKS.md`, Russian roulette).
-const ROULETTE_WEIGHT: f64 = 0.25;
-/// Paths expected to bring more than this, relative to their start, split.
-const SPLIT_WEIGHT: f64 = 2.0;
-/// Most copies of one path at one vertex.
-const MAX_SPLIT: usize = 4;
-/// Most copies one path start may become through splitting (the product of
-/// the copies made along any copy's line). Without it, a thick haze below
-/// the sunlit air, whose importance grows by orders of magnitude from the
-/// ground up, split each start into ~20 000 copies (aerosol amount 100 at
-/// −4°: up to 60 000 vertices per camera path against 13 in the preset);
-/// in the twilight preset it binds for about 1 camera path in 100, and the
-/// noise is unchanged (`BENCHMARKS.md`).
-const MAX_COPIES: usize = 256;
-
-/// Zenith × azimuth strata of the directions a control cell is projected
-/// from.
-const CONTROL_DIRECTIONS: (usize, usize) = (32, 16);
-/// Seed of the control cells' own random numbers.
-const CONTROL_SEED: u64 = 0xc047_a01e;
-
-/// Where a path stands in roulette and splitting by importance
-/// ([`Integrator::weight_window`]).
-#[derive(Clone, Copy, Debug)]
-struct Window {
-    /// Expected light at the path's start (or where a cap last lifted it),
-    /// per unit weight.
-    reference: f64,
-    /// The product of the copy counts along this path's line since its
-    /// start — the inverse of its share of the start's weight — at most
-    /// [`MAX_COPIES`].
-    copies: usize,
-}
-
 /// Where a path starts: position, direction, scatterings so far, and the
-/// scale of its weight for roulette (see [`survives_roulette`]).
+/// scale of its weight for roulette (see `termination::survives_roulette`).
 type Start = (DVec3, DVec3, u32, f64);
 /// Where a path goes on: position, direction, weight.
 type Vertex = (DVec3, DVec3, Lanes);
@@ -348,8 +315,9 @@ impl<'a> Integrator<'a> {
     }
 
     /// Uses `guide` for scattering directions (see
-    /// [`crate::plan::IntegratorOptions::sky_guide`]) and for the distance densities of
-    /// `Self::trace_sunlit`'s segments.
+    /// [`crate::plan::IntegratorOptions::sky_guide`]), for the distance
+    /// densities of segments at low sun (`Self::sunlit_segment`) and for
+    /// roulette and splitting by importance.
     #[must_use]
     pub fn with_sky_guide(mut self, guide: &'a SkyGuide) -> Self {
         self.guide = Some(guide);
@@ -405,6 +373,28 @@ impl<'a> Integrator<'a> {
         self.light(origin, dir, lanes, rng).total
     }
 
+    /// The light arriving at `x` from direction `-dir`, estimated by a
+    /// path that starts at `x` after one scattering (so the sun's disc
+    /// itself is never added: a table's or a splat's view of the light a
+    /// scattering point sees).
+    pub(crate) fn scattered_light(
+        &self,
+        x: DVec3,
+        dir: DVec3,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Radiance {
+        let mut radiance = Light::default();
+        self.trace(
+            (x, dir, 1, 1.0),
+            Lanes::splat(1.0),
+            lanes,
+            &mut radiance,
+            rng,
+        );
+        radiance.total
+    }
+
     /// [`Self::radiance`] with the part of it that is the sun's disc seen
     /// straight along `dir` (through the air, not scattered), from the
     /// same path.
@@ -425,16 +415,8 @@ impl<'a> Integrator<'a> {
                     let start = beta[..lanes.active].iter().copied().fold(0.0, f64::max);
                     let scale = if start > 0.0 { 1.0 / start } else { 1.0 };
                     let from = (x, new_dir, 1, scale);
-                    if opts.segments.sunlight_samples > 0 {
-                        self.trace_sunlit(from, beta, lanes, &mut radiance, rng);
-                    } else {
-                        self.trace(from, beta, lanes, &mut radiance, rng);
-                    }
+                    self.trace(from, beta, lanes, &mut radiance, rng);
                 }
-            }
-            _ if opts.segments.sunlight_samples > 0 && opts.segments.next_event_estimation => {
-                let from = (origin, dir, 0, 1.0);
-                self.trace_sunlit(from, Lanes::splat(1.0), lanes, &mut radiance, rng);
             }
             _ => self.trace(
                 (origin, dir, 0, 1.0),
@@ -493,14 +475,7 @@ impl<'a> Integrator<'a> {
             .sum::<f64>()
             / camera_dirs.len() as f64;
         let pdf = self.direction_mixture_pdf(c, lanes, dir, lobes, at.as_ref().filter(|_| guides));
-        let mut radiance = Light::default();
-        let start = (x, dir, 1, 1.0);
-        if opts.segments.sunlight_samples > 0 {
-            self.trace_sunlit(start, Lanes::splat(1.0), lanes, &mut radiance, rng);
-        } else {
-            self.trace(start, Lanes::splat(1.0), lanes, &mut radiance, rng);
-        }
-        Some((dir, pdf, radiance.total))
+        Some((dir, pdf, self.scattered_light(x, dir, lanes, rng)))
     }
 
     /// [`Self::transmittance_to`] from a fixed start (the observer) along
@@ -609,116 +584,6 @@ impl<'a> Integrator<'a> {
             .sum::<f64>()
             / lanes.active as f64
     }
-
-    /// Continue a path from `origin` along `dir` after `depth` scatterings
-    /// (one of `split` branches) with weight `beta`, adding what it finds to
-    /// `radiance`.
-    fn trace(
-        &self,
-        (origin, dir, depth, split): Start,
-        beta: Lanes,
-        lanes: &SpectralLanes,
-        radiance: &mut Light,
-        rng: &mut Rng,
-    ) {
-        let active = lanes.active;
-        let opts = self.plan;
-        let mut beta = beta;
-        let mut origin = origin;
-        let mut dir = dir;
-        let mut depth = depth;
-        let max_order = opts.termination.max_scattering_order;
-
-        loop {
-            let mut scattered = false;
-            // The control variate's expansions where the path scattered.
-            let mut control = None;
-            let shadowed = self
-                .guide
-                .filter(|g| opts.segments.shadow_samples > 0 && depth > 0 && g.shadowed(origin));
-            if let (Some(guide), true) = (shadowed, opts.segments.next_event_estimation) {
-                // A segment from the planet's shadow: its sunlit stretch is
-                // found by the guide's density, not by chance collisions.
-                let next = self
-                    .segment(origin, dir, depth, &beta, lanes, radiance)
-                    .and_then(|segment| {
-                        let at = guide.at(self.medium, origin);
-                        self.guided_segment(&at, &segment, &beta, lanes, radiance, rng)
-                    });
-                let Some(next) = next else { break };
-                let vertex;
-                (vertex, control) = self.resolve(next, lanes, rng);
-                (origin, dir, beta) = vertex;
-                depth += 1;
-                scattered = true;
-            } else if let Some(span) = self.medium.span(origin, dir) {
-                let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
-                if depth > 0 && opts.segments.next_event_estimation {
-                    self.force_collision(&mut tracker, span, depth, &mut beta, rng);
-                }
-                while let Some(collision) = tracker.next(rng) {
-                    let x = origin + dir * collision.t;
-                    let c = self.medium.coefficients(x.length(), lanes);
-                    let majorant = collision.majorant;
-                    // A next-event estimate at a vertex after `depth` real
-                    // scatterings adds scattering order depth + 1.
-                    if opts.segments.next_event_estimation && depth < max_order {
-                        let to_sun = self.sample_sun_direction(rng);
-                        let mu = dir.dot(to_sun);
-                        let tr = self.shadow(x, to_sun, lanes, rng);
-                        let e_sun = self.sun_irradiance_toward(to_sun, lanes);
-                        let phase = Lanes::from_fn(|j| self.scattering_phase(&c, lanes, j, mu));
-                        radiance.total += beta * phase / majorant * e_sun * tr;
-                    }
-                    if depth + 1 >= max_order {
-                        // Only lower orders wanted: continue as if null.
-                        for (j, b) in beta.iter_mut().enumerate() {
-                            *b *= 1.0 - c.extinction(j) / majorant;
-                        }
-                        continue;
-                    }
-                    if real_scattering(&c, majorant, &mut beta, lanes, rng) {
-                        control = self.control_at(x, lanes, rng);
-                        if let Some(at) = &control {
-                            self.control_in(at, &c, lanes, dir, &beta, radiance);
-                        }
-                        (dir, _) = self.scatter(x, dir, &c, &mut beta, lanes, rng);
-                        origin = x;
-                        depth += 1;
-                        scattered = true;
-                        break;
-                    }
-                }
-                if !scattered && span.hits_ground {
-                    let normal = (origin + dir * span.t_exit).normalize();
-                    let next = self.ground_vertex(normal, depth, &beta, lanes, radiance, rng);
-                    let Some(vertex) = next else { break };
-                    (origin, dir, beta) = vertex;
-                    depth += 1;
-                    scattered = true;
-                }
-            }
-            if !scattered {
-                // Escaped to space. The disc is counted here only where no
-                // next-event estimate already accounted for it.
-                if depth == 0 || !opts.segments.next_event_estimation {
-                    self.add_sun_disc(dir, depth, &beta, lanes, radiance);
-                }
-                break;
-            }
-            // Russian roulette on the largest lane weight.
-            if opts.termination.russian_roulette && depth >= 2 {
-                if !survives_roulette(&mut beta, active, depth, split, rng) {
-                    break;
-                }
-            } else if beta[..active].iter().all(|&b| b == 0.0) {
-                break;
-            }
-            if let Some(at) = &control {
-                at.subtract(lanes, dir, &beta, radiance);
-            }
-        }
-    }
 }
 
 /// A path segment: from `origin` along `dir` over `span`, after `depth`
@@ -728,32 +593,6 @@ struct Segment {
     dir: DVec3,
     span: Span,
     depth: u32,
-}
-
-/// Russian roulette after `depth` scatterings: survive with the largest
-/// active lane weight times `split` (the weight relative to its value where
-/// the path started) over [`ROULETTE_WEIGHT`] (at most 1, and at most 0.9
-/// past [`ROULETTE_CAP_DEPTH`], so paths end with probability one), dividing
-/// `beta` by that probability on survival.
-fn survives_roulette(
-    beta: &mut Lanes,
-    active: usize,
-    depth: u32,
-    split: f64,
-    rng: &mut Rng,
-) -> bool {
-    let relative = split * beta[..active].iter().copied().fold(0.0, f64::max);
-    let mut survive = (relative / ROULETTE_WEIGHT).min(1.0);
-    if depth >= ROULETTE_CAP_DEPTH {
-        survive = survive.min(0.9);
-    }
-    if rng.uniform() >= survive {
-        return false;
-    }
-    for b in beta.iter_mut() {
-        *b /= survive;
-    }
-    true
 }
 
 /// The choice at a tentative collision (coefficients `c`, under
@@ -840,94 +679,5 @@ mod tests {
                 "{share}"
             );
         }
-    }
-
-    #[test]
-    fn the_weight_window_splits_within_its_cap_and_roulettes_dim_paths() {
-        use crate::atmosphere::{Atmosphere, AtmosphereParams};
-        let atmosphere = Atmosphere::new(AtmosphereParams::default());
-        let medium = Medium::new(&atmosphere);
-        let sun = super::super::direction_from_az_el(270.0, -4.0);
-        let guide = SkyGuide::new(&medium, sun);
-        let plan = TechniquePlan::outside_a_scene(&IntegratorOptions {
-            splitting: Some(true),
-            ..IntegratorOptions::default()
-        });
-        let integrator = Integrator::new(&medium, &plan, sun).with_sky_guide(&guide);
-        let lanes = SpectralLanes::new(
-            Lanes::from([450.0, 520.0, 590.0, 660.0]),
-            LANES,
-            &medium,
-            false,
-        );
-        let x = DVec3::new(0.0, 0.0, medium.planet_radius_m + 20_000.0);
-        let c = medium.coefficients(x.length(), &lanes);
-        let here = integrator
-            .importance(x)
-            .expect("light reaches 20 km at twilight");
-        let sigma = (0..LANES).map(|j| c.scattering(j)).fold(0.0, f64::max);
-        let mut rng = Rng::new(1, 2);
-        // Weights for a given expected light relative to a reference of 1.
-        let beta_for = |expected: f64| Lanes::splat(expected / (sigma * here));
-        let start = |reference: f64| Window {
-            reference,
-            copies: 1,
-        };
-        let window = |beta: &mut Lanes, window: Window, rng: &mut Rng| {
-            let (copies, window) = integrator
-                .weight_window(x, &c, beta, (3, 1.0, window), &lanes, rng)
-                .unwrap();
-            (copies, window.reference, window.copies)
-        };
-        // Inside the window: one copy, nothing changes.
-        let mut beta = beta_for(1.0);
-        assert_eq!(window(&mut beta, start(1.0), &mut rng), (1, 1.0, 1));
-        assert_eq!(beta, beta_for(1.0));
-        // 3× the start's light: three copies, same reference.
-        assert_eq!(
-            window(&mut beta_for(3.0), start(1.0), &mut rng),
-            (3, 1.0, 3)
-        );
-        // A start with next to no light: the cap holds, and the copies'
-        // reference rises to their expected light.
-        let (copies, reference, lineage) = window(&mut beta_for(1.0), start(1e-30), &mut rng);
-        assert_eq!((copies, lineage), (MAX_SPLIT, MAX_SPLIT));
-        let each = 1e30 / MAX_SPLIT as f64;
-        assert!((reference / (each * 1e-30) - 1.0).abs() < 1e-9);
-        let lifted = Window {
-            reference,
-            copies: lineage,
-        };
-        let (again, _, _) = window(&mut beta_for(1.0 / MAX_SPLIT as f64), lifted, &mut rng);
-        assert!(again <= 1, "copies split again: {again}");
-        // A path already one of MAX_COPIES / 2 copies of its start splits
-        // into 2 at most, however bright; one of MAX_COPIES, not at all,
-        // and its reference rises to its expected light.
-        let many = |copies: usize| Window {
-            reference: 1.0,
-            copies,
-        };
-        let (copies, reference, lineage) =
-            window(&mut beta_for(100.0), many(MAX_COPIES / 2), &mut rng);
-        assert_eq!((copies, lineage), (2, MAX_COPIES));
-        assert!((reference - 50.0).abs() < 1e-9);
-        let (copies, reference, lineage) = window(&mut beta_for(100.0), many(MAX_COPIES), &mut rng);
-        assert_eq!((copies, lineage), (1, MAX_COPIES));
-        assert!((reference - 100.0).abs() < 1e-9);
-        // A tenth of the start's light: survives 40 % of the time, with
-        // its weight divided by 0.4.
-        let trials = 20_000;
-        let mut survived = 0;
-        for _ in 0..trials {
-            let mut beta = beta_for(0.1);
-            let (copies, _, _) = window(&mut beta, start(1.0), &mut rng);
-            if copies == 1 {
-                survived += 1;
-                assert!((beta[0] / beta_for(0.1)[0] - 2.5).abs() < 1e-9);
-            }
-        }
-        let rate = f64::from(survived) / f64::from(trials);
-        let sigma_rate = (0.4 * 0.6 / f64::from(trials)).sqrt();
-        assert!((rate - 0.4).abs() < 5.0 * sigma_rate, "survival {rate}");
     }
 }

@@ -1,20 +1,23 @@
-//! Segment estimators: a path segment estimated through next-event points
-//! drawn from its expected sunlight (low sun), with roulette and splitting
-//! by importance, or by delta tracking with forced collisions.
+//! Segment estimators at low sun: a path segment estimated through
+//! next-event points drawn from its expected sunlight, built per segment
+//! or read from the sky guide's cached densities, and the forced first
+//! collision of delta tracking.
 
 use super::{
-    cosine_sample_hemisphere, ground_point, rayleigh, real_scattering, survives_roulette, Branches,
-    Component, ControlAt, DVec3, GuideAt, InScatterDistribution, Integrator, Lanes, Light, Next,
-    Rng, Segment, SegmentDensity, Span, SpectralLanes, Start, Vertex, Window, DIRECTION_UNIFORMS,
-    MAX_BRANCHES, MAX_COPIES, MAX_SPLIT, MAX_SUNLIGHT_SAMPLES, ROULETTE_CAP_DEPTH, ROULETTE_WEIGHT,
-    SPLIT_WEIGHT,
+    cosine_sample_hemisphere, ground_point, rayleigh, Branches, Component, DVec3, GuideAt,
+    InScatterDistribution, Integrator, Lanes, Light, Next, Rng, Segment, SegmentDensity, Span,
+    SpectralLanes, DIRECTION_UNIFORMS, MAX_BRANCHES, MAX_SUNLIGHT_SAMPLES,
 };
 
 impl<'a> Integrator<'a> {
-    /// A path whose every segment is estimated through in-scattering points
-    /// drawn from [`InScatterDistribution`] (the expected sunlight along the
-    /// segment) instead of delta-tracked collisions. For a segment from x
-    /// along ω,
+    /// The segment from `origin` along `dir` after `depth` scatterings,
+    /// reached with weight `beta` (`at`: the guide at `origin`, if already
+    /// looked up), estimated through in-scattering points drawn from its
+    /// expected sunlight instead of delta-tracked collisions: from the
+    /// guide's cached density of rays from points of the same altitude and
+    /// solar zenith where there is a guide, else from an
+    /// [`InScatterDistribution`] built for the segment. For a segment from
+    /// x along ω,
     ///
     /// L(x, ω) = ∫ T(0,t) σ_s(t) ∫ p L_in dω' dt + T(0,t_end) L_end.
     ///
@@ -27,210 +30,7 @@ impl<'a> Integrator<'a> {
     /// path continues either from the medium point or from the ground, chosen
     /// by their expected shares (weights divided by the choice's probability).
     /// Every transmittance on the segment comes from one tracking pass.
-    pub(super) fn trace_sunlit(
-        &self,
-        (origin, dir, depth, split): Start,
-        beta: Lanes,
-        lanes: &SpectralLanes,
-        radiance: &mut Light,
-        rng: &mut Rng,
-    ) {
-        let window = self.importance(origin).map(|reference| Window {
-            reference,
-            copies: 1,
-        });
-        self.walk_sunlit(
-            Next::Vertex((origin, dir, beta)),
-            (depth, split, window),
-            lanes,
-            radiance,
-            rng,
-        );
-    }
-
-    /// Expected light a path finds going on from `x`, per unit weight, up
-    /// to a constant: the guide's mean once-scattered radiance there.
-    pub(super) fn importance(&self, x: DVec3) -> Option<f64> {
-        self.guide
-            .filter(|_| self.plan.termination.russian_roulette && self.plan.termination.splitting)
-            .map(|g| g.skylight(self.medium, x))
-            .filter(|&s| s > 0.0 && s.is_finite())
-    }
-
-    /// [`Self::trace_sunlit`] from `next` after `depth` scatterings.
-    pub(super) fn walk_sunlit(
-        &self,
-        next: Next<'a>,
-        (depth, split, window): (u32, f64, Option<Window>),
-        lanes: &SpectralLanes,
-        radiance: &mut Light,
-        rng: &mut Rng,
-    ) {
-        let mut next = Some(next);
-        let mut depth = depth;
-        let mut window = window;
-        while let Some(n) = next {
-            // The guide at the vertex, where choosing its direction looked it up.
-            let ((origin, dir, beta), at) = match n {
-                Next::Vertex(vertex) => (vertex, None),
-                Next::Scatter(x, dir_in, mut beta, control) => {
-                    let c = self.medium.coefficients(x.length(), lanes);
-                    let copies = window.and_then(|window| {
-                        self.weight_window(x, &c, &mut beta, (depth, split, window), lanes, rng)
-                    });
-                    match copies {
-                        Some((0, _)) => break,
-                        Some((copies, copies_window)) => {
-                            // This path goes on as the last copy.
-                            window = Some(copies_window);
-                            let from = (x, dir_in, &c, control.as_ref());
-                            let walk = (depth, split, window);
-                            self.copies(from, beta, copies, walk, lanes, radiance, rng)
-                        }
-                        None => {
-                            // Without the guide's importance: roulette as
-                            // for any other vertex.
-                            let (new_dir, at) = self.scatter(x, dir_in, &c, &mut beta, lanes, rng);
-                            if self.plan.termination.russian_roulette
-                                && depth >= 2
-                                && !survives_roulette(&mut beta, lanes.active, depth, split, rng)
-                            {
-                                break;
-                            }
-                            if let Some(control) = &control {
-                                control.subtract(lanes, new_dir, &beta, radiance);
-                            }
-                            ((x, new_dir, beta), at)
-                        }
-                    }
-                }
-            };
-            let segment = (origin, dir, depth, at);
-            next = self.sunlit_segment(segment, &beta, lanes, radiance, rng);
-            depth += 1;
-            self.roulette_vertex(&mut next, depth, split, lanes, rng);
-        }
-    }
-
-    /// `copies` copies of a path scattered at `x` along `dir_in`
-    /// (coefficients `c`, weight `beta` before the direction's factor),
-    /// sharing its weight, each with its own direction: all but one walk on
-    /// here; the last is returned.
-    #[allow(clippy::too_many_arguments)]
-    pub(super) fn copies(
-        &self,
-        (x, dir_in, c, control): (
-            DVec3,
-            DVec3,
-            &crate::render::medium::Coefficients,
-            Option<&ControlAt<'a>>,
-        ),
-        beta: Lanes,
-        copies: usize,
-        walk: (u32, f64, Option<Window>),
-        lanes: &SpectralLanes,
-        radiance: &mut Light,
-        rng: &mut Rng,
-    ) -> (Vertex, Option<GuideAt<'a>>) {
-        let share = 1.0 / copies as f64;
-        let beta = beta.map(|b| b * share);
-        for _ in 1..copies {
-            let mut copy = beta;
-            let (new_dir, _) = self.scatter(x, dir_in, c, &mut copy, lanes, rng);
-            if let Some(control) = control {
-                control.subtract(lanes, new_dir, &copy, radiance);
-            }
-            self.walk_sunlit(Next::Vertex((x, new_dir, copy)), walk, lanes, radiance, rng);
-        }
-        let mut last = beta;
-        let (new_dir, at) = self.scatter(x, dir_in, c, &mut last, lanes, rng);
-        if let Some(control) = control {
-            control.subtract(lanes, new_dir, &last, radiance);
-        }
-        ((x, new_dir, last), at)
-    }
-
-    /// Russian roulette on `next` if it is a vertex with its direction
-    /// chosen, after `depth` scatterings (real scatterings play it in
-    /// [`Self::walk_sunlit`]); ends the path (`None`) if it loses.
-    pub(super) fn roulette_vertex(
-        &self,
-        next: &mut Option<Next<'a>>,
-        depth: u32,
-        split: f64,
-        lanes: &SpectralLanes,
-        rng: &mut Rng,
-    ) {
-        if let Some(Next::Vertex((_, _, beta))) = next {
-            if self.plan.termination.russian_roulette
-                && depth >= 2
-                && !survives_roulette(beta, lanes.active, depth, split, rng)
-            {
-                *next = None;
-            }
-        }
-    }
-
-    /// Adjoint-driven roulette and splitting at a real scattering at `x`
-    /// (coefficients `c`, weight `beta` before the direction's factor):
-    /// the path's expected light relative to its window's reference (its
-    /// start's) picks how many copies go on (0 = ended; survivors' weights
-    /// are divided by their chance, copies share the weight), returned with
-    /// the copies' window. Where a cap ([`MAX_SPLIT`] per vertex,
-    /// [`MAX_COPIES`] per start) leaves each copy at or above the splitting
-    /// threshold, their reference rises to their expected light, so a start
-    /// with next to no light (where the guide's table fades to zero, or
-    /// deep in a thick haze) cannot make every later vertex split again.
-    pub(super) fn weight_window(
-        &self,
-        x: DVec3,
-        c: &crate::render::medium::Coefficients,
-        beta: &mut Lanes,
-        (depth, split, window): (u32, f64, Window),
-        lanes: &SpectralLanes,
-        rng: &mut Rng,
-    ) -> Option<(usize, Window)> {
-        let Window { reference, copies } = window;
-        let here = self.importance(x)?;
-        let weight = (0..lanes.active)
-            .map(|j| beta[j] * c.scattering(j))
-            .fold(0.0, f64::max);
-        let expected = split * weight * here / reference;
-        if expected < ROULETTE_WEIGHT || depth >= ROULETTE_CAP_DEPTH {
-            let mut survive = (expected / ROULETTE_WEIGHT).min(1.0);
-            if depth >= ROULETTE_CAP_DEPTH {
-                survive = survive.min(0.9);
-            }
-            if rng.uniform() >= survive {
-                return Some((0, window));
-            }
-            for b in beta.iter_mut() {
-                *b /= survive;
-            }
-            return Some((1, window));
-        }
-        if expected >= SPLIT_WEIGHT {
-            let room = (MAX_COPIES / copies).max(1);
-            let split_into = (expected.floor() as usize).min(MAX_SPLIT).min(room);
-            let each = expected / split_into as f64;
-            let lifted = if each >= SPLIT_WEIGHT {
-                reference * each
-            } else {
-                reference
-            };
-            let window = Window {
-                reference: lifted,
-                copies: copies * split_into,
-            };
-            return Some((split_into, window));
-        }
-        Some((1, window))
-    }
-
-    /// One segment of [`Self::trace_sunlit`] from `origin` along `dir` after
-    /// `depth` scatterings with weight `beta` (`at`: the guide at `origin`,
-    /// if already looked up); returns the next vertex (position, direction,
-    /// weight).
+    /// Returns where the path goes on.
     pub(super) fn sunlit_segment(
         &self,
         (origin, dir, depth, at): (DVec3, DVec3, u32, Option<GuideAt<'a>>),
@@ -278,7 +78,7 @@ impl<'a> Integrator<'a> {
     /// in-scattering points drawn from `distribution`, each with a next-event
     /// estimate, plus what lies at the segment's end; returns the vertices
     /// the path goes on from, one per branch of `(n, branches)`, each
-    /// weighted 1/branches (see [`Self::trace_sunlit`]).
+    /// weighted 1/branches (see [`Self::sunlit_segment`]).
     #[allow(clippy::too_many_arguments)]
     pub(super) fn estimate_segment(
         &self,
@@ -491,70 +291,6 @@ impl<'a> Integrator<'a> {
             .min(MAX_SUNLIGHT_SAMPLES);
         self.estimate_segment(segment, beta, Some(&density), (n, 0), lanes, radiance, rng);
         self.track_continuation(segment, beta, lanes, radiance, rng)
-    }
-
-    /// Where a path goes on from `segment`, whose light a segment estimate
-    /// already counted: its first real scattering by delta tracking (so the
-    /// weight changes by about the single-scattering albedo, whatever the
-    /// ray), or else the ground's bounce; `None` if the path ends.
-    pub(super) fn track_continuation(
-        &self,
-        segment: &Segment,
-        beta: &Lanes,
-        lanes: &SpectralLanes,
-        radiance: &mut Light,
-        rng: &mut Rng,
-    ) -> Option<Next<'a>> {
-        let &Segment {
-            origin,
-            dir,
-            span,
-            depth,
-        } = segment;
-        let max_order = self.plan.termination.max_scattering_order;
-        if depth + 1 >= max_order {
-            return None;
-        }
-        let mut beta = *beta;
-        let mut tracker = self.medium.tracker(origin, dir, span, lanes, self.bounds);
-        while let Some(collision) = tracker.next(rng) {
-            let x = origin + dir * collision.t;
-            let c = self.medium.coefficients(x.length(), lanes);
-            if real_scattering(&c, collision.majorant, &mut beta, lanes, rng) {
-                let control = self.control_at(x, lanes, rng);
-                if let Some(at) = &control {
-                    self.control_in(at, &c, lanes, dir, &beta, radiance);
-                }
-                return Some(Next::Scatter(x, dir, beta, control));
-            }
-        }
-        if !span.hits_ground || self.medium.ground_albedo_max <= 0.0 {
-            return None;
-        }
-        // Cosine-weighted bounce: the Lambertian BRDF·cos/pdf = albedo.
-        let normal = (origin + dir * span.t_exit).normalize();
-        Some(Next::Vertex((
-            ground_point(self.medium, normal),
-            cosine_sample_hemisphere(normal, rng),
-            Lanes::from_fn(|j| beta[j] * lanes.ground_albedo[j]),
-        )))
-    }
-
-    /// `next` with its direction chosen (one copy, no splitting).
-    pub(super) fn resolve(
-        &self,
-        next: Next<'a>,
-        lanes: &SpectralLanes,
-        rng: &mut Rng,
-    ) -> (Vertex, Option<ControlAt<'a>>) {
-        match next {
-            Next::Vertex(vertex) => (vertex, None),
-            Next::Scatter(x, dir, mut beta, control) => {
-                let c = self.medium.coefficients(x.length(), lanes);
-                let (new_dir, _) = self.scatter(x, dir, &c, &mut beta, lanes, rng);
-                ((x, new_dir, beta), control)
-            }
-        }
     }
 
     /// Forced collision: on a segment that leaves the atmosphere after

@@ -1,0 +1,200 @@
+//! The tables a render reads, built in one place from its technique plan:
+//! the camera rays' expected-sunlight densities, the sky guide, the
+//! control variate's table of once-scattered light (with the projection
+//! that fills its cells), and the splatter's circles. Every table is a
+//! cache of a function of the scene alone, filled on first use with its
+//! own random numbers, so what a render computes does not depend on the
+//! order in which the tables fill; the integrator only reads them.
+
+use std::f64::consts::PI;
+use std::sync::{Arc, OnceLock};
+
+use glam::DVec3;
+
+use super::camera::Camera;
+use super::circles::CircleSplatter;
+use super::control::{CellCoefficients, CellProjection, RadianceTable, COEFFICIENTS, NODES};
+use super::guide::SkyGuide;
+use super::integrator::Integrator;
+use super::medium::{Lanes, Medium, SpectralLanes, LANES};
+use super::sunlight::CameraDensities;
+use crate::plan::TechniquePlan;
+use crate::rng::Rng;
+
+/// Zenith × azimuth strata of the directions a control cell is projected
+/// from.
+const CONTROL_DIRECTIONS: (usize, usize) = (32, 16);
+/// Seed of the control cells' own random numbers.
+const CONTROL_SEED: u64 = 0xc047_a01e;
+
+/// The tables of one render.
+pub struct Tables {
+    /// Expected-sunlight densities of camera rays, built per view
+    /// direction on first use.
+    pub camera_densities: CameraDensities,
+    /// Incoming once-scattered light by direction at scattering points,
+    /// built per (altitude, solar zenith) cell on first use; only for the
+    /// plans that read it ([`TechniquePlan::needs_sky_guide`]); shared with
+    /// the camera densities, which read its skylight as their importance.
+    pub sky_guide: Option<Arc<SkyGuide>>,
+    /// The once-scattered light's table for the control variate, where the
+    /// plan turns it on.
+    pub control: Option<RadianceTable>,
+    /// The splatter, built on first use (after the draft pass).
+    splatter: OnceLock<Option<CircleSplatter>>,
+}
+
+impl Tables {
+    /// The tables `plan` reads in `medium` for an observer at `observer_m`
+    /// and the sun along `sun_direction`, the control's wavelength nodes
+    /// over `range_nm`. Empty until first used.
+    pub fn new(
+        medium: &Medium,
+        plan: &TechniquePlan,
+        observer_m: DVec3,
+        sun_direction: DVec3,
+        range_nm: (f64, f64),
+    ) -> Self {
+        let sky_guide = plan
+            .needs_sky_guide()
+            .then(|| Arc::new(SkyGuide::new(medium, sun_direction)));
+        let camera_densities = CameraDensities::new(medium, observer_m, sun_direction);
+        let camera_importance = Some(plan.camera.importance).filter(|&share| share > 0.0);
+        let camera_densities = match (&sky_guide, camera_importance) {
+            (Some(guide), Some(share)) => {
+                let guide = Arc::clone(guide);
+                camera_densities.with_importance(
+                    share,
+                    Arc::new(move |medium: &Medium, x: DVec3| guide.skylight(medium, x)),
+                )
+            }
+            _ => camera_densities,
+        };
+        let control = plan.control_variate.then(|| {
+            let projection = SingleScattering {
+                plan: plan.for_control_table(),
+                sun_direction,
+            };
+            RadianceTable::new(
+                medium.planet_radius_m,
+                medium.top_radius_m,
+                sun_direction,
+                range_nm,
+                Box::new(projection),
+            )
+        });
+        Self {
+            camera_densities,
+            sky_guide,
+            control,
+            splatter: OnceLock::new(),
+        }
+    }
+
+    /// The integrator of `plan` in `medium` for the sun along
+    /// `sun_direction`, reading these tables.
+    pub fn integrator<'a>(
+        &'a self,
+        medium: &'a Medium,
+        plan: &'a TechniquePlan,
+        sun_direction: DVec3,
+    ) -> Integrator<'a> {
+        let integrator = Integrator::new(medium, plan, sun_direction)
+            .with_camera_densities(&self.camera_densities);
+        let integrator = match &self.sky_guide {
+            Some(guide) => integrator.with_sky_guide(guide),
+            None => integrator,
+        };
+        match &self.control {
+            Some(table) => integrator.with_control(table),
+            None => integrator,
+        }
+    }
+
+    /// The splatter along the circles about the sun's axis for `camera`
+    /// at `observer_m`, learned with `integrator` on first use; `None`
+    /// where there are no circles to splat along.
+    pub(crate) fn splatter(
+        &self,
+        medium: &Medium,
+        integrator: &Integrator<'_>,
+        camera: &Camera,
+        observer_m: DVec3,
+    ) -> Option<&CircleSplatter> {
+        self.splatter
+            .get_or_init(|| {
+                CircleSplatter::new(
+                    medium,
+                    integrator,
+                    self.sky_guide.as_deref(),
+                    camera,
+                    observer_m,
+                )
+            })
+            .as_ref()
+    }
+}
+
+/// The control table's cells: the once-scattered light (and the ground's
+/// direct reflection) arriving at a cell's central point, per unit
+/// irradiance at the table's wavelength nodes, projected on the basis from
+/// next-event estimates along [`CONTROL_DIRECTIONS`] stratified directions,
+/// by paths of the render's plan cut after one scattering
+/// ([`TechniquePlan::for_control_table`]). Single scattering holds the
+/// sharp part of the light a point sees (the aureole, the horizon), which
+/// is what the control takes out of the paths (`BENCHMARKS.md`); the
+/// random numbers are the cell's own, so the table does not depend on the
+/// render's.
+struct SingleScattering {
+    plan: TechniquePlan,
+    sun_direction: DVec3,
+}
+
+impl CellProjection for SingleScattering {
+    fn project(
+        &self,
+        medium: &Medium,
+        guide: Option<&SkyGuide>,
+        table: &RadianceTable,
+        i: usize,
+        k: usize,
+    ) -> CellCoefficients {
+        let single = Integrator::new(medium, &self.plan, self.sun_direction);
+        let single = match guide {
+            Some(guide) => single.with_sky_guide(guide),
+            None => single,
+        };
+        let origin = table.cell_point(i, k);
+        let frame = table.frame(origin);
+        let (nt, np) = CONTROL_DIRECTIONS;
+        let weight = 4.0 * PI / (nt * np) as f64;
+        let mut rng = Rng::new(CONTROL_SEED, (i * 1000 + k) as u64);
+        let sets: Vec<SpectralLanes> = (0..NODES.div_ceil(LANES))
+            .map(|set| {
+                let nm = std::array::from_fn(|j| table.node_nm((set * LANES + j).min(NODES - 1)));
+                SpectralLanes::new(Lanes::from(nm), LANES, medium, true)
+            })
+            .collect();
+        let mut coefficients = [[0.0; COEFFICIENTS]; NODES];
+        for it in 0..nt {
+            for ip in 0..np {
+                let cos_theta = -1.0 + 2.0 * (it as f64 + rng.uniform()) / nt as f64;
+                let phi = PI * (ip as f64 + rng.uniform()) / np as f64;
+                let dir = frame.direction(cos_theta, phi);
+                let y = frame.basis(dir);
+                for (set, lanes) in sets.iter().enumerate() {
+                    let radiance = single.scattered_light(origin, dir, lanes, &mut rng);
+                    for (j, l) in radiance.iter().enumerate() {
+                        let n = set * LANES + j;
+                        if n < NODES && l.is_finite() {
+                            for (c, y) in coefficients[n].iter_mut().zip(&y) {
+                                *c += weight * l * y;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        coefficients
+    }
+}
