@@ -162,6 +162,40 @@ pub struct SegmentPlan {
     pub forced_collision_depth: u32,
 }
 
+/// The estimator of one path segment ([`SegmentPlan::estimator`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum SegmentEstimator {
+    /// Delta tracking over the majorants, with a next-event estimate at
+    /// every tentative collision where next-event estimation is on.
+    DeltaTracking,
+    /// `sunlight_samples` next-event points drawn from the segment's
+    /// expected sunlight (the sky guide's cached density where the render
+    /// has one), the path going on from one of them or the ground.
+    SunlightPoints,
+    /// `shadow_samples` next-event points from the sky guide's cached
+    /// density, the path going on from its first delta-tracked real
+    /// scattering.
+    ShadowPoints,
+}
+
+impl SegmentPlan {
+    /// The estimator of a segment after `depth` scatterings whose start
+    /// lies in the planet's shadow (`in_shadow`) or not, where the render
+    /// has a sky guide (`guide`). Points from the expected sunlight need
+    /// next-event estimation (they are its points).
+    pub fn estimator(&self, depth: u32, in_shadow: bool, guide: bool) -> SegmentEstimator {
+        if !self.next_event_estimation {
+            SegmentEstimator::DeltaTracking
+        } else if self.sunlight_samples > 0 {
+            SegmentEstimator::SunlightPoints
+        } else if self.shadow_samples > 0 && depth > 0 && in_shadow && guide {
+            SegmentEstimator::ShadowPoints
+        } else {
+            SegmentEstimator::DeltaTracking
+        }
+    }
+}
+
 /// How scattering directions are drawn.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DirectionPlan {
@@ -489,6 +523,56 @@ mod tests {
             TransmittanceEstimator::ChordResidualRatioTracking
         );
         assert_eq!(draft.draft_weight, plan.draft_weight);
+        // Twilight splits; its draft does not.
+        let twilight = TechniquePlan::new(
+            &IntegratorOptions::default(),
+            &Conditions::new(-4.0, &haze(), true),
+        );
+        assert!(twilight.termination.splitting);
+        assert!(!twilight.first_pass().termination.splitting);
+        for depth in [0, 1, 5] {
+            assert_eq!(
+                draft.segments.estimator(depth, true, true),
+                SegmentEstimator::DeltaTracking
+            );
+        }
+    }
+
+    #[test]
+    fn each_segment_gets_the_estimator_its_plan_names() {
+        use SegmentEstimator::*;
+        let plan = |sun_el: f64, options: IntegratorOptions| {
+            TechniquePlan::new(&options, &Conditions::new(sun_el, &haze(), true)).segments
+        };
+        // Low sun: every segment through points of its expected sunlight.
+        let sunset = plan(2.0, IntegratorOptions::default());
+        for (depth, shadow) in [(0, false), (1, true), (4, false)] {
+            assert_eq!(sunset.estimator(depth, shadow, true), SunlightPoints);
+        }
+        // High sun: delta tracking, unless shadow points are asked for,
+        // and then only after a scattering, in the shadow, with a guide.
+        let midday = plan(60.0, IntegratorOptions::default());
+        assert_eq!(midday.estimator(2, true, true), DeltaTracking);
+        let shadow = plan(
+            60.0,
+            IntegratorOptions {
+                shadow_samples: 2,
+                ..IntegratorOptions::default()
+            },
+        );
+        assert_eq!(shadow.estimator(1, true, true), ShadowPoints);
+        assert_eq!(shadow.estimator(0, true, true), DeltaTracking);
+        assert_eq!(shadow.estimator(1, false, true), DeltaTracking);
+        assert_eq!(shadow.estimator(1, true, false), DeltaTracking);
+        // Without next-event estimation there are no points to draw.
+        let analog = plan(
+            2.0,
+            IntegratorOptions {
+                next_event_estimation: false,
+                ..IntegratorOptions::default()
+            },
+        );
+        assert_eq!(analog.estimator(1, true, true), DeltaTracking);
     }
 
     #[test]

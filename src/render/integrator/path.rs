@@ -20,6 +20,8 @@ use super::{
     cosine_sample_hemisphere, ground_point, real_scattering, DVec3, GuideAt, Integrator, Lanes,
     Light, Next, Rng, Segment, SpectralLanes, Start, Vertex,
 };
+use crate::plan::SegmentEstimator;
+use crate::render::guide::SkyGuide;
 
 impl<'a> Integrator<'a> {
     /// Continues a path from `origin` along `dir` after `depth` scatterings
@@ -124,11 +126,8 @@ impl<'a> Integrator<'a> {
     /// The plan's estimate of the segment from `origin` along `dir` after
     /// `depth` scatterings, reached with weight `beta` (`at`: the guide at
     /// `origin`, if already looked up): adds the light found along it and
-    /// returns where the path goes on. With next-event estimation, segments
-    /// are estimated through points of their expected sunlight where the
-    /// plan asks for `sunlight_samples`, through the guide's densities from
-    /// the planet's shadow where it asks for `shadow_samples`; every other
-    /// segment is delta-tracked.
+    /// returns where the path goes on, by the plan's estimator
+    /// ([`crate::plan::SegmentPlan::estimator`]).
     fn estimate_next(
         &self,
         (origin, dir, depth, at): (DVec3, DVec3, u32, Option<GuideAt<'a>>),
@@ -137,23 +136,31 @@ impl<'a> Integrator<'a> {
         radiance: &mut Light,
         rng: &mut Rng,
     ) -> Option<Next<'a>> {
-        let segments = &self.plan.segments;
-        if segments.next_event_estimation {
-            if segments.sunlight_samples > 0 {
-                return self.sunlit_segment((origin, dir, depth, at), beta, lanes, radiance, rng);
+        // Whether the segment starts in the planet's shadow matters only
+        // to `shadow_samples`; the test is skipped otherwise.
+        let in_shadow =
+            |guide: &SkyGuide| self.plan.segments.shadow_samples > 0 && guide.shadowed(origin);
+        let guide = self.guide.filter(|&g| in_shadow(g));
+        match self
+            .plan
+            .segments
+            .estimator(depth, guide.is_some(), self.guide.is_some())
+        {
+            SegmentEstimator::SunlightPoints => {
+                self.sunlit_segment((origin, dir, depth, at), beta, lanes, radiance, rng)
             }
-            let shadowed = self
-                .guide
-                .filter(|g| segments.shadow_samples > 0 && depth > 0 && g.shadowed(origin));
-            if let Some(guide) = shadowed {
-                // A segment from the planet's shadow: its sunlit stretch is
-                // found by the guide's density, not by chance collisions.
+            SegmentEstimator::ShadowPoints => {
+                // Its sunlit stretch is found by the guide's density, not
+                // by chance collisions.
+                let guide = guide?;
                 let segment = self.segment(origin, dir, depth, beta, lanes, radiance)?;
                 let at = at.unwrap_or_else(|| guide.at(self.medium, origin));
-                return self.guided_segment(&at, &segment, beta, lanes, radiance, rng);
+                self.guided_segment(&at, &segment, beta, lanes, radiance, rng)
+            }
+            SegmentEstimator::DeltaTracking => {
+                self.tracked_segment(origin, dir, depth, beta, lanes, radiance, rng)
             }
         }
-        self.tracked_segment(origin, dir, depth, beta, lanes, radiance, rng)
     }
 
     /// The segment from `origin` along `dir` after `depth` scatterings,

@@ -222,7 +222,7 @@ impl<'a> Integrator<'a> {
             let normal = (origin + dir * span.t_exit).normalize();
             self.ground_direct(normal, depth, &through, lanes, radiance, rng);
             if ground_goes_on {
-                // Each ground branch bounces on its own (see `ground_vertex`).
+                // Each ground branch bounces on its own (see `Integrator::ground_bounce`).
                 let x = ground_point(self.medium, normal);
                 let weight: Lanes = Lanes::from_fn(|j| {
                     through[j] * lanes.ground_albedo[j] * share / (1.0 - p_medium)
