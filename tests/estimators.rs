@@ -6,8 +6,9 @@ use std::sync::Arc;
 use glam::DVec3;
 use skyrender::atmosphere::{Atmosphere, AtmosphereParams};
 use skyrender::physics::sun;
-use skyrender::plan::{Conditions, TechniquePlan};
+use skyrender::plan::{Conditions, ControlSource, TechniquePlan};
 use skyrender::render::guide::SkyGuide;
+use skyrender::render::lanes::{LaneTable, SolarSource};
 use skyrender::render::sunlight::CameraDensities;
 use skyrender::render::tables::Tables;
 use skyrender::render::{
@@ -795,7 +796,8 @@ fn the_control_variate_is_unbiased() {
         );
         assert!(controlled.control_variate);
         // The tables as the renderer builds them for the controlled plan.
-        let tables = Tables::new(&medium, &controlled, origin, sun_dir, (360.0, 830.0));
+        let lane_table = LaneTable::new(&medium, (360.0, 830.0), SolarSource::from_unit_sun(true));
+        let tables = Tables::new(&medium, &controlled, &lane_table, origin, sun_dir);
         let run = |plan: TechniquePlan, paths: u32, streams: u64| {
             let integrator = tables.integrator(&medium, &plan, sun_dir);
             estimate(streams, paths, |rng| {
@@ -936,5 +938,63 @@ fn twilight_techniques_leave_the_mean_alone() {
             };
             assert_agree(&what, run(options, 40_000, s), reference, power);
         }
+    }
+}
+
+#[test]
+fn the_model_control_variate_is_unbiased_in_the_sky_and_on_the_ground() {
+    // The approximate model's light of every order as the control (its
+    // exact phase and Lambertian integrals added at every scattering and
+    // ground bounce, the paths going on carrying L − L̃) must match plain
+    // delta tracking: at sunset, by day and at twilight, toward the sky and
+    // down onto the ground (where the camera's ground branches bounce under
+    // the control), from 2 m and from an airliner's 10 km.
+    let atmosphere = Atmosphere::new(AtmosphereParams::default());
+    let medium = Medium::new(&atmosphere);
+    let lanes = unit_sun_lanes(&medium, [440.0, 520.0, 600.0, 680.0]);
+    let lane_table = LaneTable::new(&medium, (360.0, 830.0), SolarSource::from_unit_sun(true));
+    let radius = atmosphere.params.planet_radius_m;
+    let cases = [
+        // (observer altitude, sun az/el, view az/el)
+        (2.0, (270.0, 2.0), (265.0, 3.0)),
+        (2.0, (270.0, 2.0), (250.0, -20.0)),
+        (2.0, (180.0, 30.0), (200.0, 20.0)),
+        (10_000.0, (180.0, 30.0), (90.0, -30.0)),
+        (2.0, (270.0, -4.0), (250.0, 10.0)),
+    ];
+    for (altitude_m, (sun_az, sun_el), (az, el)) in cases {
+        let origin = DVec3::new(0.0, 0.0, radius + altitude_m);
+        let sun_dir = direction_from_az_el(sun_az, sun_el);
+        let view = direction_from_az_el(az, el);
+        let controlled = plan_at(
+            &IntegratorOptions {
+                control_variate: Some(true),
+                control_source: Some(ControlSource::Model),
+                ..IntegratorOptions::default()
+            },
+            sun_el,
+            &atmosphere.params,
+        );
+        assert_eq!(controlled.control_source, ControlSource::Model);
+        let tables = Tables::new(&medium, &controlled, &lane_table, origin, sun_dir);
+        let run = |plan: TechniquePlan, paths: u32, streams: u64| {
+            let integrator = tables.integrator(&medium, &plan, sun_dir);
+            estimate(streams, paths, |rng| {
+                integrator.radiance(origin, view, &lanes, rng)
+            })
+        };
+        let reference = run(
+            TechniquePlan::outside_a_scene(&IntegratorOptions {
+                camera_samples: Some(0),
+                sky_guide: Some(0.0),
+                forced_collision_depth: 0,
+                ..IntegratorOptions::default()
+            }),
+            40_000,
+            700,
+        );
+        let what = format!("model control, {altitude_m} m, sun {sun_el}°, view ({az}, {el})");
+        let power = if sun_el < 0.0 { 0.08 } else { 0.04 };
+        assert_agree(&what, run(controlled, 10_000, 701), reference, power);
     }
 }

@@ -118,15 +118,14 @@ pub fn ablation_variants() -> Vec<Variant> {
     ]
 }
 
-/// A variant to run: one of [`ablation_variants`], or any integrator
-/// option set by name (`key=value`, as in a scene file's
-/// `[render.integrator]` table).
+/// A variant to run: one of [`ablation_variants`], or integrator options
+/// set by name (`key=value`, as in a scene file's `[render.integrator]`
+/// table; several joined by `+`).
 pub(super) enum Selected {
     Listed(Variant),
     Option {
         name: String,
-        key: String,
-        value: toml::Value,
+        settings: Vec<(String, toml::Value)>,
     },
 }
 
@@ -143,7 +142,7 @@ impl Selected {
         let mut scene = scene.clone();
         match self {
             Self::Listed((_, change)) => change(&mut scene),
-            Self::Option { name, key, value } => {
+            Self::Option { name, settings } => {
                 // toml's messages run over lines ("…\nin `key`"): one line here.
                 let fail = |e: &dyn std::fmt::Display| {
                     let message = e.to_string();
@@ -152,7 +151,9 @@ impl Selected {
                 };
                 let mut options =
                     toml::Table::try_from(&scene.render.integrator).map_err(|e| fail(&e))?;
-                options.insert(key.clone(), value.clone());
+                for (key, value) in settings {
+                    options.insert(key.clone(), value.clone());
+                }
                 scene.render.integrator = options.try_into().map_err(|e| fail(&e))?;
                 scene.validate().map_err(|e| fail(&e))?;
             }
@@ -163,7 +164,8 @@ impl Selected {
 
 /// The ablation variants named in `names` (all of them for `None`): listed
 /// ones by name, others as `key=value` integrator options (the value a TOML
-/// value, or else a string: `shadow_transmittance=ratio-tracking`); an
+/// value, or else a string: `shadow_transmittance=ratio-tracking`; several
+/// options at once joined by `+`); an
 /// error names a variant that is neither, or whose option is unknown or
 /// invalid, with the valid names — before any measurement.
 pub(super) fn selected_variants(names: Option<&[String]>) -> Result<Vec<Selected>, String> {
@@ -184,18 +186,23 @@ pub(super) fn selected_variants(names: Option<&[String]>) -> Result<Vec<Selected
                     valid.join(", ")
                 )
             };
-            let (key, text) = n.split_once('=').ok_or_else(unknown)?;
-            if key.trim().is_empty() {
-                return Err(format!("--variants: '{n}' names no option (key=value)"));
-            }
-            let value = toml::from_str::<toml::Table>(&format!("v = {text}"))
-                .ok()
-                .and_then(|mut t| t.remove("v"))
-                .unwrap_or_else(|| toml::Value::String(text.to_owned()));
+            let settings = n
+                .split('+')
+                .map(|setting| {
+                    let (key, text) = setting.split_once('=').ok_or_else(unknown)?;
+                    if key.trim().is_empty() {
+                        return Err(format!("--variants: '{n}' names no option (key=value)"));
+                    }
+                    let value = toml::from_str::<toml::Table>(&format!("v = {text}"))
+                        .ok()
+                        .and_then(|mut t| t.remove("v"))
+                        .unwrap_or_else(|| toml::Value::String(text.to_owned()));
+                    Ok((key.trim().to_owned(), value))
+                })
+                .collect::<Result<Vec<_>, String>>()?;
             let selected = Selected::Option {
                 name: n.clone(),
-                key: key.trim().to_owned(),
-                value,
+                settings,
             };
             selected.apply(&Scene::default())?;
             Ok(selected)

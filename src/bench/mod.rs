@@ -72,7 +72,8 @@ pub struct BenchArgs {
     pub ablation: bool,
     /// Only these ablation variants (names as printed, e.g.
     /// `camera_samples=0`), or any `[render.integrator]` option as
-    /// `key=value` (e.g. `sky_guide=0.35`); implies --ablation.
+    /// `key=value` (e.g. `sky_guide=0.35`; several joined by `+`); implies
+    /// --ablation.
     #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
     pub variants: Option<Vec<String>>,
     /// Also measure parallel efficiency from 1 to all threads.
@@ -311,8 +312,10 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
                     }
                 };
                 let v = pool.install(|| measure_noise(&s, budget_s, seed))?;
-                let ratio =
-                    (v.noise * v.noise * v.seconds / (run.noise * run.noise * run.seconds)).sqrt();
+                let equal_time = |noise_v: f64, noise: f64| {
+                    (noise_v * noise_v * v.seconds / (noise * noise * run.seconds)).sqrt()
+                };
+                let ratio = equal_time(v.noise, run.noise);
                 ablation.push(AblationRow {
                     scene: name.clone(),
                     variant: variant.name().to_owned(),
@@ -320,6 +323,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
                     seconds: v.seconds,
                     noise_ratio: ratio,
                     time_ratio: ratio * ratio,
+                    noise_whole_at_budget: v.noise_whole,
+                    whole_noise_ratio: equal_time(v.noise_whole, run.noise_whole),
                     paths_per_s: v.paths_per_s(),
                     mean_ratio: v.mean_luminance_cd_m2 / run.mean_luminance_cd_m2,
                     cpu_share: v.cpu_share,

@@ -107,6 +107,11 @@ pub struct AblationRow {
     pub noise_ratio: f64,
     /// Time the variant needs for the full renderer's noise, relative (= ratio²).
     pub time_ratio: f64,
+    /// Relative noise of the variant over the whole image (ground
+    /// included, the sun's cone left out) at the budget.
+    pub noise_whole_at_budget: f64,
+    /// [`Self::noise_ratio`] over the whole image.
+    pub whole_noise_ratio: f64,
     /// Camera paths per second of the variant.
     pub paths_per_s: f64,
     /// Mean sky luminance of the variant over the full renderer's (≈ 1: unbiased).
@@ -298,9 +303,12 @@ pub fn format_report(report: &Report) -> String {
         );
         let _ = writeln!(
             out,
-            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | M paths/s | CPU share | mean ratio |"
+            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | whole-image noise | whole-image ratio | M paths/s | CPU share | mean ratio |"
         );
-        let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|---:|");
+        let _ = writeln!(
+            out,
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        );
         for a in &report.ablation {
             let overran = if a.seconds > 1.1 * report.budget_s {
                 " †"
@@ -309,13 +317,15 @@ pub fn format_report(report: &Report) -> String {
             };
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {:.1}{overran} | {} | {} | {:.3} | {} | {} |",
+                "| {} | {} | {} | {:.1}{overran} | {} | {} | {} | {} | {:.3} | {} | {} |",
                 a.scene,
                 a.variant,
                 pct(a.noise_at_budget),
                 a.seconds,
                 num(a.noise_ratio, 2),
                 num(a.time_ratio, 2),
+                pct(a.noise_whole_at_budget),
+                num(a.whole_noise_ratio, 2),
                 a.paths_per_s / 1e6,
                 pct(a.cpu_share),
                 num(a.mean_ratio, 3)

@@ -16,7 +16,7 @@
 pub mod options;
 pub mod regime;
 
-pub use options::{IntegratorOptions, Sampler, TransmittanceEstimator};
+pub use options::{ControlSource, IntegratorOptions, Sampler, TransmittanceEstimator};
 pub use regime::{Regime, RegimeDefaults, REGIMES};
 
 use crate::atmosphere::AtmosphereParams;
@@ -236,6 +236,8 @@ pub struct TechniquePlan {
     /// The once-scattered light as a control variate (never with a limit
     /// on the orders, which it would mix).
     pub control_variate: bool,
+    /// The control variate's approximation, where it is on.
+    pub control_source: ControlSource,
     /// Multiply scattered light splatted along circles.
     pub circle_splatting: bool,
     /// How pixel samples draw their first random numbers.
@@ -302,6 +304,7 @@ impl TechniquePlan {
                 max_scattering_order: options.max_scattering_order.unwrap_or(u32::MAX),
             },
             control_variate: control_variate && options.max_scattering_order.is_none(),
+            control_source: options.control_source.unwrap_or_default(),
             circle_splatting,
             sampler: options.sampler,
             draft_weight: row.draft_weight,

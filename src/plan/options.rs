@@ -82,6 +82,9 @@ pub struct IntegratorOptions {
     /// where the haze lets the table hold the light
     /// ([`super::control_table_holds`]). Set, it is honoured.
     pub control_variate: Option<bool>,
+    /// What the control variate's approximation A is, where the control is
+    /// on. Unset: [`ControlSource::OnceScattered`].
+    pub control_source: Option<ControlSource>,
     /// Multiply scattered light splatted along the scene's circles of
     /// symmetry: the camera's own paths keep single scattering and the
     /// ground's light, and paths started anywhere in the visible air carry
@@ -115,11 +118,29 @@ impl Default for IntegratorOptions {
             russian_roulette: true,
             splitting: None,
             control_variate: None,
+            control_source: None,
             circle_splatting: None,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }
     }
+}
+
+/// The control variate's approximation of the light arriving at a
+/// scattering point.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum ControlSource {
+    /// The once-scattered light (and the ground's direct reflection),
+    /// projected from the render's own estimates with paths cut after one
+    /// scattering.
+    #[default]
+    OnceScattered,
+    /// The approximate sky model's light of every order and its lit
+    /// ground ([`crate::render::sky_model::ModelField`]): the paths
+    /// estimate only what the model misses; the ground's bounces are
+    /// controlled too.
+    Model,
 }
 
 /// How a pixel sample draws its random numbers.

@@ -331,9 +331,57 @@ impl<const N: usize> Picked<'_, N> {
     }
 }
 
+/// Legendre moments χ_l = 2π ∫ f(μ) P_l(μ) dμ, l = 0..=[`L_MAX`], of the
+/// Lambertian kernel f(μ) = max(μ, 0)/π (the reflected radiance per unit
+/// albedo is ∫ f(n·ω) L(ω) dω): by the Funk–Hecke theorem the ground
+/// reflects Σ_l χ_l Σ_m a_lm Y_lm(n) of an expansion. Closed form
+/// (Ramamoorthi and Hanrahan 2001, eq. 8, their Â_l = π χ_l): χ_0 = 1,
+/// χ_1 = 2/3, zero for odd l > 1, and for even l ≥ 2
+/// χ_l = 2 (−1)^{l/2−1} / ((l + 2)(l − 1)) · l! / (2^l ((l/2)!)²).
+pub fn lambert_moments() -> [f64; L_MAX + 1] {
+    std::array::from_fn(|l| match l {
+        0 => 1.0,
+        1 => 2.0 / 3.0,
+        _ if l % 2 == 1 => 0.0,
+        _ => {
+            let half = l / 2;
+            let sign = if half % 2 == 1 { 1.0 } else { -1.0 };
+            // l! / (2^l (l/2)!²) = C(l, l/2) / 2^l.
+            let central = (1..=half).fold(1.0, |c, k| c * (half + k) as f64 / k as f64);
+            2.0 * sign / (((l + 2) * (l - 1)) as f64) * central / 2f64.powi(l as i32)
+        }
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_lambert_moments_are_the_clamped_cosine_integrals() {
+        // 2 ∫₀¹ μ P_l(μ) dμ by the midpoint rule, P_l by Bonnet's recursion.
+        let n = 200_000_u32;
+        let moments = lambert_moments();
+        for (l, &chi) in moments.iter().enumerate() {
+            let mut sum = 0.0;
+            for i in 0..n {
+                let mu = (f64::from(i) + 0.5) / f64::from(n);
+                let (mut p0, mut p1) = (1.0, mu);
+                let p = if l == 0 {
+                    1.0
+                } else {
+                    for k in 1..l {
+                        let p2 = ((2 * k + 1) as f64 * mu * p1 - k as f64 * p0) / (k + 1) as f64;
+                        (p0, p1) = (p1, p2);
+                    }
+                    p1
+                };
+                sum += 2.0 * mu * p / f64::from(n);
+            }
+            assert!((sum - chi).abs() < 1e-9, "l = {l}: {sum} vs {chi}");
+        }
+        assert!((moments[4] + 1.0 / 24.0).abs() < 1e-15);
+    }
 
     #[test]
     fn the_basis_is_orthonormal_over_the_symmetric_sphere() {

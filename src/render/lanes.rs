@@ -165,6 +165,12 @@ impl LaneTable {
         std::array::from_fn(|k| a[k] + f * (b[k] - a[k]))
     }
 
+    /// The wavelengths the table covers, nm.
+    pub fn range_nm(&self) -> (f64, f64) {
+        let last = self.rows.len().saturating_sub(1);
+        (self.first_nm, self.first_nm + last as f64 * self.step_nm)
+    }
+
     /// The lanes for `wavelengths_nm`, as [`SpectralLanes::new`] would build them.
     pub fn lanes(&self, wavelengths_nm: Lanes, active: usize, medium: &Medium) -> SpectralLanes {
         SpectralLanes::from_constants(

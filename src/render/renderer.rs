@@ -132,15 +132,16 @@ impl Renderer {
             &scene.render.integrator,
             &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles),
         );
+        let lane_table = LaneTable::new(&medium, cmf.range_nm(), solar_source(scene));
         Ok(Self {
-            tables: Tables::new(&medium, &plan, observer_m, sun_direction, cmf.range_nm()),
+            tables: Tables::new(&medium, &plan, &lane_table, observer_m, sun_direction),
             mirror: mirror_pairs(scene),
             draft_plan: plan.first_pass(),
             plan,
             observer_m,
             sun_direction,
             cmf,
-            lane_table: LaneTable::new(&medium, cmf.range_nm(), solar_source(scene)),
+            lane_table,
             scene: scene.clone(),
             atmosphere,
             medium,

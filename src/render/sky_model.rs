@@ -465,16 +465,24 @@ impl SkyIrradiance {
     }
 }
 
-impl SkyModel {
-    /// The model of `medium` lit along `sun_direction`, seen from
-    /// `observer_m`, in the sun and colours of `lane_table` and `cmf`.
-    pub fn new(
-        medium: &Medium,
-        lane_table: &LaneTable,
-        cmf: &ColourMatching,
-        sun_direction: DVec3,
-        observer_m: DVec3,
-    ) -> Self {
+/// The model's light field: the radiance arriving at any point of the
+/// atmosphere from any direction, per unit solar irradiance, at the
+/// model's wavelengths — the model's tables without the observer's view
+/// table. A view ray's march through the tables costs about as much as a
+/// few path vertices, so the field serves as a control variate's
+/// approximation of the light at a point (`crate::render::tables`).
+pub struct ModelField {
+    groups: Vec<SpectralLanes>,
+    phases: Phases,
+    ms: MsTable,
+    sky: SkyIrradiance,
+    sun_direction: DVec3,
+}
+
+impl ModelField {
+    /// The field of `medium` lit along `sun_direction`, at the wavelengths
+    /// of `lane_table`'s constants.
+    pub fn new(medium: &Medium, lane_table: &LaneTable, sun_direction: DVec3) -> Self {
         let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
         let groups: Vec<SpectralLanes> = nodes
             .chunks(LANES)
@@ -489,6 +497,58 @@ impl SkyModel {
         };
         let ms = MsTable::new(&optics);
         let sky = SkyIrradiance::new(&optics, &ms);
+        Self {
+            groups,
+            phases,
+            ms,
+            sky,
+            sun_direction,
+        }
+    }
+
+    fn optics<'a>(&'a self, medium: &'a Medium) -> Optics<'a> {
+        Optics {
+            medium,
+            groups: &self.groups,
+            phases: &self.phases,
+            sun_direction: self.sun_direction,
+        }
+    }
+
+    /// The radiance arriving at `x` looking along unit `dir` in `medium`
+    /// (the one the field was built for), per unit solar irradiance, at
+    /// each of the model's wavelengths ([`Self::node_nm`]); the sun's disc
+    /// left out.
+    pub fn radiance(&self, medium: &Medium, x: DVec3, dir: DVec3) -> [f64; NODES] {
+        let optics = self.optics(medium);
+        let g = optics.march(x, dir, VIEW_STEPS, Some(&self.ms), Some(&self.sky));
+        let (pr, pa) = self.phases.at(dir.dot(self.sun_direction));
+        std::array::from_fn(|n| pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n])
+    }
+
+    /// The wavelength of the model's node `k` < [`MODEL_NODES`], nm.
+    pub fn node_nm(k: usize) -> f64 {
+        node_wavelength(k)
+    }
+}
+
+/// Wavelengths at which the model is computed ([`ModelField::node_nm`]).
+pub const MODEL_NODES: usize = NODES;
+
+impl SkyModel {
+    /// The model of `medium` lit along `sun_direction`, seen from
+    /// `observer_m`, in the sun and colours of `lane_table` and `cmf`.
+    pub fn new(
+        medium: &Medium,
+        lane_table: &LaneTable,
+        cmf: &ColourMatching,
+        sun_direction: DVec3,
+        observer_m: DVec3,
+    ) -> Self {
+        let field = ModelField::new(medium, lane_table, sun_direction);
+        let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
+        let optics = field.optics(medium);
+        let (ms, sky) = (&field.ms, &field.sky);
         let zenith = observer_m.normalize();
         let toward_sun = sun_direction - zenith * sun_direction.dot(zenith);
         let x = if toward_sun.length() > 1e-9 {
@@ -510,7 +570,7 @@ impl SkyModel {
                 let elevation = elevation_of_row(row as f64, horizon_rad);
                 let azimuth = PI * column as f64 / (VIEW_COLUMNS - 1) as f64;
                 let dir = direction(&frame, elevation, azimuth);
-                let g = optics.march(observer_m, dir, VIEW_STEPS, Some(&ms), Some(&sky));
+                let g = optics.march(observer_m, dir, VIEW_STEPS, Some(ms), Some(sky));
                 [g.rayleigh, g.aerosol, g.isotropic]
             })
             .collect();
@@ -520,7 +580,7 @@ impl SkyModel {
             horizon_rad,
             sun_direction,
             xyz_weights: xyz_weights(medium, lane_table, cmf, &nodes),
-            phases,
+            phases: field.phases,
         }
     }
 

@@ -16,9 +16,11 @@ use super::circles::CircleSplatter;
 use super::control::{CellCoefficients, CellProjection, RadianceTable, COEFFICIENTS, NODES};
 use super::guide::SkyGuide;
 use super::integrator::Integrator;
+use super::lanes::LaneTable;
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
+use super::sky_model::{ModelField, MODEL_NODES};
 use super::sunlight::CameraDensities;
-use crate::plan::TechniquePlan;
+use crate::plan::{ControlSource, TechniquePlan};
 use crate::rng::Rng;
 
 /// Zenith × azimuth strata of the directions a control cell is projected
@@ -47,13 +49,13 @@ pub struct Tables {
 impl Tables {
     /// The tables `plan` reads in `medium` for an observer at `observer_m`
     /// and the sun along `sun_direction`, the control's wavelength nodes
-    /// over `range_nm`. Empty until first used.
+    /// over `lane_table`'s range. Empty until first used.
     pub fn new(
         medium: &Medium,
         plan: &TechniquePlan,
+        lane_table: &LaneTable,
         observer_m: DVec3,
         sun_direction: DVec3,
-        range_nm: (f64, f64),
     ) -> Self {
         let sky_guide = plan
             .needs_sky_guide()
@@ -71,16 +73,21 @@ impl Tables {
             _ => camera_densities,
         };
         let control = plan.control_variate.then(|| {
-            let projection = SingleScattering {
-                plan: plan.for_control_table(),
-                sun_direction,
+            let projection: Box<dyn CellProjection> = match plan.control_source {
+                ControlSource::OnceScattered => Box::new(SingleScattering {
+                    plan: plan.for_control_table(),
+                    sun_direction,
+                }),
+                ControlSource::Model => Box::new(ModelRadiance {
+                    field: ModelField::new(medium, lane_table, sun_direction),
+                }),
             };
             RadianceTable::new(
                 medium.planet_radius_m,
                 medium.top_radius_m,
                 sun_direction,
-                range_nm,
-                Box::new(projection),
+                lane_table.range_nm(),
+                projection,
             )
         });
         Self {
@@ -191,6 +198,59 @@ impl CellProjection for SingleScattering {
                                 *c += weight * l * y;
                             }
                         }
+                    }
+                }
+            }
+        }
+        coefficients
+    }
+}
+
+/// The control table's cells from the approximate sky model
+/// ([`ModelField`]): the light of *every* order arriving at a cell's
+/// central point (and the lit ground's), per unit irradiance, projected on
+/// the basis by the midpoint rule over [`CONTROL_DIRECTIONS`] directions,
+/// each the model's march through its tables, linear in wavelength between
+/// the model's nodes. The paths then estimate only what the model misses,
+/// L − L̃ (the "whole path" control variate); it holds no random numbers.
+struct ModelRadiance {
+    field: ModelField,
+}
+
+impl CellProjection for ModelRadiance {
+    fn project(
+        &self,
+        medium: &Medium,
+        _guide: Option<&SkyGuide>,
+        table: &RadianceTable,
+        i: usize,
+        k: usize,
+    ) -> CellCoefficients {
+        let origin = table.cell_point(i, k);
+        let frame = table.frame(origin);
+        let (nt, np) = CONTROL_DIRECTIONS;
+        let weight = 4.0 * PI / (nt * np) as f64;
+        // Each table node as a blend of two model nodes.
+        let blend: [(usize, f64); NODES] = std::array::from_fn(|n| {
+            let nm = table.node_nm(n);
+            let last = MODEL_NODES - 1;
+            let step = ModelField::node_nm(1) - ModelField::node_nm(0);
+            let u = ((nm - ModelField::node_nm(0)) / step).clamp(0.0, last as f64);
+            let m = (u as usize).min(last - 1);
+            (m, u - m as f64)
+        });
+        let mut coefficients = [[0.0; COEFFICIENTS]; NODES];
+        for it in 0..nt {
+            for ip in 0..np {
+                let cos_theta = -1.0 + 2.0 * (it as f64 + 0.5) / nt as f64;
+                let phi = PI * (ip as f64 + 0.5) / np as f64;
+                let dir = frame.direction(cos_theta, phi);
+                let y = frame.basis(dir);
+                let model = self.field.radiance(medium, origin, dir);
+                for (c, &(m, f)) in coefficients.iter_mut().zip(&blend) {
+                    let l = model[m] * (1.0 - f) + model[m + 1] * f;
+                    for (c, y) in c.iter_mut().zip(&y) {
+                        *c += weight * l * y;
                     }
                 }
             }

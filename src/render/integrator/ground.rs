@@ -20,10 +20,10 @@ impl Integrator<'_> {
         let x = ground_point(self.medium, normal);
         if opts.segments.next_event_estimation && depth < max_order {
             let to_sun = self.sample_sun_direction(rng);
+            let e_sun = self.sun_irradiance_toward(to_sun, lanes);
             let cos = normal.dot(to_sun);
             if cos > 0.0 {
                 let tr = self.shadow(x, to_sun, lanes, rng);
-                let e_sun = self.sun_irradiance_toward(to_sun, lanes);
                 radiance.total += *beta * lanes.ground_albedo / PI * cos * e_sun * tr;
             }
         }

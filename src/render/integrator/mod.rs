@@ -219,6 +219,8 @@ pub struct Integrator<'a> {
     splatting: bool,
     /// The aerosol phase function's Legendre moments k_0..k_L.
     aerosol_moments: MomentsOverWavelength<{ L_MAX + 1 }>,
+    /// The Lambertian kernel's Legendre moments.
+    lambert: [f64; L_MAX + 1],
 }
 
 /// The control variate at one scattering point: the point's frame and the
@@ -286,6 +288,7 @@ impl<'a> Integrator<'a> {
             control: None,
             splatting: false,
             aerosol_moments: MomentsOverWavelength::new(&medium.aerosol_phase),
+            lambert: super::control::lambert_moments(),
         }
     }
 

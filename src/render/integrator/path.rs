@@ -196,9 +196,9 @@ impl<'a> Integrator<'a> {
                 // scatterings adds scattering order depth + 1.
                 if nee && depth < max_order {
                     let to_sun = self.sample_sun_direction(rng);
+                    let e_sun = self.sun_irradiance_toward(to_sun, lanes);
                     let mu = dir.dot(to_sun);
                     let tr = self.shadow(x, to_sun, lanes, rng);
-                    let e_sun = self.sun_irradiance_toward(to_sun, lanes);
                     let phase = Lanes::from_fn(|j| self.scattering_phase(&c, lanes, j, mu));
                     radiance.total += beta * phase / majorant * e_sun * tr;
                 }
@@ -214,7 +214,7 @@ impl<'a> Integrator<'a> {
             if span.hits_ground {
                 let normal = (origin + dir * span.t_exit).normalize();
                 self.ground_direct(normal, depth, &beta, lanes, radiance, rng);
-                return self.ground_bounce(normal, depth, &beta, lanes, rng);
+                return self.ground_bounce(normal, depth, &beta, lanes, radiance, rng);
             }
         }
         // Escaped to space. The disc is counted here only where no
@@ -259,7 +259,7 @@ impl<'a> Integrator<'a> {
             return None;
         }
         let normal = (origin + dir * span.t_exit).normalize();
-        self.ground_bounce(normal, depth, &beta, lanes, rng)
+        self.ground_bounce(normal, depth, &beta, lanes, radiance, rng)
     }
 
     /// A real scattering at `x` of a path along `dir` with weight `beta`
@@ -286,7 +286,9 @@ impl<'a> Integrator<'a> {
 
     /// The Lambertian ground's bounce under unit `normal`, reached after
     /// `depth` scatterings with weight `beta`: a cosine-weighted direction
-    /// (BRDF · cos / pdf = albedo), or `None` where no order beyond it is
+    /// (BRDF · cos / pdf = albedo), with the control variate's share taken
+    /// out where the plan controls the ground
+    /// ([`Integrator::ground_control`]); `None` where no order beyond it is
     /// wanted or the ground is black.
     pub(super) fn ground_bounce(
         &self,
@@ -294,6 +296,7 @@ impl<'a> Integrator<'a> {
         depth: u32,
         beta: &Lanes,
         lanes: &SpectralLanes,
+        radiance: &mut Light,
         rng: &mut Rng,
     ) -> Option<Next<'a>> {
         if depth + 1 >= self.plan.termination.max_scattering_order
@@ -301,10 +304,13 @@ impl<'a> Integrator<'a> {
         {
             return None;
         }
+        let bounce = cosine_sample_hemisphere(normal, rng);
+        let beta = *beta * lanes.ground_albedo;
+        self.ground_control(normal, bounce, &beta, lanes, radiance, rng);
         Some(Next::Vertex((
             ground_point(self.medium, normal),
-            cosine_sample_hemisphere(normal, rng),
-            *beta * lanes.ground_albedo,
+            bounce,
+            beta,
         )))
     }
 }

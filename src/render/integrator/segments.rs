@@ -206,10 +206,10 @@ impl<'a> Integrator<'a> {
                 continue;
             }
             let to_sun = self.sample_sun_direction(rng);
+            let e_sun = self.sun_irradiance_toward(to_sun, lanes);
             let mu = dir.dot(to_sun);
             let tr_sun = self.shadow(x, to_sun, lanes, rng);
             let weight = 1.0 / (n as f64 * density);
-            let e_sun = self.sun_irradiance_toward(to_sun, lanes);
             let phase = Lanes::from_fn(|j| self.scattering_phase(&c, lanes, j, mu));
             radiance.total += *beta * tr_view * weight * phase * e_sun * tr_sun;
         }
@@ -234,6 +234,7 @@ impl<'a> Integrator<'a> {
                     .filter(|((_, &f), _)| !f)
                 {
                     let bounce = rng.replaying(u, |rng| cosine_sample_hemisphere(normal, rng));
+                    self.ground_control(normal, bounce, &weight, lanes, radiance, rng);
                     *slot = Some((x, bounce, weight));
                 }
             }
