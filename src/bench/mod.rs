@@ -607,6 +607,7 @@ mod tests {
             "camera_branches=3",
             "shadow_transmittance=ratio-tracking",
             "splitting=true",
+            "control_variate=true+control_source=model",
         ]
         .map(str::to_owned);
         let picked = selected_variants(Some(&names)).unwrap();
@@ -619,6 +620,12 @@ mod tests {
             TransmittanceEstimator::RatioTracking
         );
         assert_eq!(options(3).splitting, Some(true));
+        // Options joined by `+` are one variant.
+        assert_eq!(options(4).control_variate, Some(true));
+        assert_eq!(
+            options(4).control_source,
+            Some(crate::plan::ControlSource::Model)
+        );
         // Everything else as it was.
         let mut expected = scene.render.integrator.clone();
         expected.sky_guide = Some(0.35);
@@ -634,6 +641,8 @@ mod tests {
             ("sky_guide=7", "7 is outside the valid range 0 to 1"),
             ("camera_branches", "unknown variant"),
             ("=3", "'=3' names no option"),
+            ("splitting=true+=3", "names no option"),
+            ("splitting=true+sky_gide=0.3", "unknown field"),
         ] {
             let err = selected_variants(Some(&[bad.to_owned()])).err().unwrap();
             assert!(
