@@ -564,7 +564,7 @@ fn camera_ray_densities_are_unbiased() {
                    streams: u64| {
             let options = IntegratorOptions {
                 camera_samples: Some(camera_samples),
-                camera_branches,
+                camera_branches: Some(camera_branches),
                 max_scattering_order: order,
                 ..IntegratorOptions::default()
             };
@@ -905,7 +905,7 @@ fn twilight_techniques_leave_the_mean_alone() {
             "one camera point, one branch",
             IntegratorOptions {
                 camera_samples: Some(1),
-                camera_branches: 1,
+                camera_branches: Some(1),
                 ..default.clone()
             },
         ),

@@ -41,10 +41,10 @@ pub fn ablation_variants() -> Vec<Variant> {
             s.render.integrator.camera_samples = Some(2);
         }),
         ("camera_branches=1", |s| {
-            s.render.integrator.camera_branches = 1;
+            s.render.integrator.camera_branches = Some(1);
         }),
-        ("camera_branches=8", |s| {
-            s.render.integrator.camera_branches = 8;
+        ("camera_branches=4", |s| {
+            s.render.integrator.camera_branches = Some(4);
         }),
         ("camera_importance=0", |s| {
             s.render.integrator.camera_importance = Some(0.0);

@@ -614,7 +614,7 @@ mod tests {
         let applied: Vec<_> = picked.iter().map(|v| v.apply(&scene).unwrap()).collect();
         let options = |i: usize| &applied[i].render.integrator;
         assert_eq!(options(0).sky_guide, Some(0.35));
-        assert_eq!(options(1).camera_branches, 3);
+        assert_eq!(options(1).camera_branches, Some(3));
         assert_eq!(
             options(2).shadow_transmittance,
             TransmittanceEstimator::RatioTracking

@@ -36,7 +36,7 @@ pub const SPLAT_CAMERA_SAMPLES: u32 = 8;
 pub const MAX_SUNLIGHT_SAMPLES: usize = 8;
 
 /// Most branches of a camera path (`camera_branches`).
-pub const MAX_BRANCHES: usize = 8;
+pub const MAX_BRANCHES: usize = 16;
 
 /// Largest `forced_collision_depth` accepted: the depth past which the
 /// integrator's roulette caps survival at 0.9, so paths end with
@@ -274,7 +274,7 @@ impl TechniquePlan {
             wavelengths_per_path: options.wavelengths_per_path,
             camera: CameraPlan {
                 samples: camera_samples,
-                branches: options.camera_branches,
+                branches: options.camera_branches.unwrap_or(row.camera_branches),
                 importance: if camera_samples > 0 { importance } else { 0.0 },
             },
             segments: SegmentPlan {
@@ -405,6 +405,7 @@ mod tests {
             let plan = TechniquePlan::new(&options, &Conditions::new(elevation, &haze(), true));
             assert_eq!(plan.regime, regime);
             assert_eq!(plan.segments.sunlight_samples, row.sunlight_samples);
+            assert_eq!(plan.camera.branches, row.camera_branches);
             assert_eq!(plan.camera.importance, row.camera_importance);
             assert_eq!(plan.directions.sky_guide, row.sky_guide);
             assert_eq!(plan.directions.sky_guide_sunlit, row.sky_guide_sunlit);
@@ -431,6 +432,7 @@ mod tests {
     fn set_choices_stay_whatever_the_sun() {
         let options = IntegratorOptions {
             camera_samples: Some(3),
+            camera_branches: Some(5),
             camera_importance: Some(0.2),
             sunlight_samples: Some(2),
             sun_lobe: Some(0.4),
@@ -447,6 +449,7 @@ mod tests {
             .collect();
         for plan in &plans {
             assert_eq!(plan.camera.samples, 3);
+            assert_eq!(plan.camera.branches, 5);
             assert_eq!(plan.camera.importance, 0.2);
             assert_eq!(plan.segments.sunlight_samples, 2);
             assert_eq!(plan.directions.sun_lobe, 0.4);

@@ -27,10 +27,12 @@ pub struct IntegratorOptions {
     pub camera_samples: Option<u32>,
     /// Paths the camera ray branches into at its segment (each from its own
     /// point, drawn from the skylight part of the density, or ground
-    /// bounce, weighted 1/N), 1–8, with `camera_samples` > 0: the camera
+    /// bounce, weighted 1/N), 1–16, with `camera_samples` > 0: the camera
     /// segment's cost is shared by several estimates of the multiply
-    /// scattered light, which carries most of the variance.
-    pub camera_branches: u32,
+    /// scattered light, which carries most of the variance. Unset: the
+    /// regime table's (where light scattered again in the air is splatted
+    /// along circles, a ray's branches all bounce off the ground it meets).
+    pub camera_branches: Option<u32>,
     /// Share of the points camera paths branch from drawn ∝ σ_s T × the sky
     /// guide's mean once-scattered radiance at the point (the light a
     /// branch can expect to find there) instead of σ_s T, 0–1. Unset: the
@@ -107,7 +109,7 @@ impl Default for IntegratorOptions {
             shadow_transmittance: TransmittanceEstimator::ResidualRatioTracking,
             next_event_estimation: true,
             camera_samples: None,
-            camera_branches: 4,
+            camera_branches: None,
             camera_importance: None,
             sunlight_samples: None,
             sun_lobe: None,

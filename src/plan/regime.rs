@@ -88,6 +88,8 @@ pub struct RegimeDefaults {
     /// Next-event points per path segment from its expected sunlight
     /// (`sunlight_samples`).
     pub sunlight_samples: u32,
+    /// Paths a camera ray branches into (`camera_branches`).
+    pub camera_branches: u32,
     /// Share of camera branch points drawn by the guide's skylight
     /// (`camera_importance`).
     pub camera_importance: f64,
@@ -127,6 +129,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
         Regime::Twilight,
         RegimeDefaults {
             sunlight_samples: 1,
+            camera_branches: 4,
             camera_importance: 0.5,
             sun_lobe: 0.3,
             sky_guide: 0.35,
@@ -141,6 +144,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
         Regime::Sunset,
         RegimeDefaults {
             sunlight_samples: 1,
+            camera_branches: 4,
             camera_importance: 0.5,
             sun_lobe: 0.3,
             sky_guide: 0.25,
@@ -155,6 +159,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
         Regime::LowSun,
         RegimeDefaults {
             sunlight_samples: 0,
+            camera_branches: 4,
             camera_importance: 0.0,
             sun_lobe: 0.3,
             sky_guide: 0.25,
@@ -169,6 +174,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
         Regime::Day,
         RegimeDefaults {
             sunlight_samples: 0,
+            camera_branches: 4,
             camera_importance: 0.0,
             sun_lobe: 0.3,
             sky_guide: 0.25,
@@ -183,6 +189,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
         Regime::HighSun,
         RegimeDefaults {
             sunlight_samples: 0,
+            camera_branches: 4,
             camera_importance: 0.0,
             sun_lobe: 0.15,
             sky_guide: 0.25,
@@ -223,15 +230,16 @@ fn fraction(w: f64) -> String {
 /// README's copy equal to this).
 pub fn markdown_table() -> String {
     let mut rows = vec![
-        "| regime | sun elevation | `sunlight_samples` | `camera_importance` | `sun_lobe` | `sky_guide` | `sky_guide_sunlit` | `splitting` | `control_variate` | `circle_splatting` | draft weight |".to_string(),
-        "|---|---|---|---|---|---|---|---|---|---|---|".to_string(),
+        "| regime | sun elevation | `sunlight_samples` | `camera_branches` | `camera_importance` | `sun_lobe` | `sky_guide` | `sky_guide_sunlit` | `splitting` | `control_variate` | `circle_splatting` | draft weight |".to_string(),
+        "|---|---|---|---|---|---|---|---|---|---|---|---|".to_string(),
     ];
     for (regime, d) in REGIMES {
         rows.push(format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             regime.name(),
             band(regime),
             d.sunlight_samples,
+            d.camera_branches,
             d.camera_importance,
             d.sun_lobe,
             d.sky_guide,

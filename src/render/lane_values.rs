@@ -3,7 +3,7 @@
 //! product of lanes is written as a product, not as a loop (after
 //! Psychopath's spectral sample type).
 
-use std::ops::{Add, AddAssign, Deref, DerefMut, Div, Mul, MulAssign, Sub, SubAssign};
+use std::ops::{Add, AddAssign, Deref, DerefMut, Div, DivAssign, Mul, MulAssign, Sub, SubAssign};
 
 use crate::spectrum::LANES;
 
@@ -137,6 +137,14 @@ impl Div<f64> for Lanes {
     }
 }
 
+impl DivAssign<f64> for Lanes {
+    fn div_assign(&mut self, scalar: f64) {
+        for v in &mut self.0 {
+            *v /= scalar;
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -156,6 +164,9 @@ mod tests {
         c -= a;
         assert_eq!(c.0, std::array::from_fn(|j| a[j] * b[j] + 1.0 - a[j]));
         assert_eq!((a / 2.0).0, a.0.map(|v| v / 2.0));
+        let mut d = a;
+        d /= 3.0;
+        assert_eq!(d.0, a.0.map(|v| v / 3.0));
         assert_eq!(Lanes::splat(7.0).0, [7.0; LANES]);
     }
 }

@@ -656,7 +656,9 @@ impl Scene {
         if let Some(n) = i.camera_samples {
             check_count("camera samples", n as usize, 0, samples)?;
         }
-        check_count("camera branches", i.camera_branches as usize, 1, branches)?;
+        if let Some(n) = i.camera_branches {
+            check_count("camera branches", n as usize, 1, branches)?;
+        }
         if let Some(share) = i.sun_lobe {
             check_range("sun lobe", share, 0.0, 1.0)?;
         }
@@ -869,7 +871,7 @@ mod tests {
         for (toml, parameter, range) in [
             ("wavelengths_per_path = 0", "wavelengths per path", "1 to 4"),
             ("camera_samples = 9", "camera samples", "0 to 8"),
-            ("camera_branches = 0", "camera branches", "1 to 8"),
+            ("camera_branches = 0", "camera branches", "1 to 16"),
             ("sunlight_samples = 9", "sunlight samples", "0 to 8"),
             ("shadow_samples = 9", "shadow samples", "0 to 8"),
             ("sun_lobe = 1.5", "sun lobe", "0 to 1"),

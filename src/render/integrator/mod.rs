@@ -548,9 +548,7 @@ impl<'a> Integrator<'a> {
     ) -> (DVec3, Option<GuideAt<'a>>) {
         let (new_dir, pdf, at) = self.sample_scatter_direction(x, dir, c, lanes, rng);
         let mu = dir.dot(new_dir);
-        for (j, b) in beta.iter_mut().enumerate() {
-            *b *= self.scattering_phase(c, lanes, j, mu) / pdf;
-        }
+        *beta *= Lanes::from_fn(|j| self.scattering_phase(c, lanes, j, mu) / pdf);
         (new_dir, at)
     }
 
@@ -615,14 +613,10 @@ fn real_scattering(
         / lanes.active as f64)
         .clamp(0.0, 1.0);
     if rng.uniform() < p_scatter {
-        for b in beta.iter_mut() {
-            *b /= majorant * p_scatter;
-        }
+        *beta /= majorant * p_scatter;
         return true;
     }
-    for (j, b) in beta.iter_mut().enumerate() {
-        *b *= (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter));
-    }
+    *beta *= Lanes::from_fn(|j| (majorant - c.extinction(j)) / (majorant * (1.0 - p_scatter)));
     false
 }
 

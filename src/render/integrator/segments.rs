@@ -314,9 +314,6 @@ impl<'a> Integrator<'a> {
         if depth == 0 || depth > self.plan.segments.forced_collision_depth || span.hits_ground {
             return;
         }
-        let p = tracker.force_collision(rng);
-        for b in beta {
-            *b *= p;
-        }
+        *beta *= tracker.force_collision(rng);
     }
 }

@@ -65,9 +65,7 @@ pub(super) fn survives_roulette(
     if rng.uniform() >= survive {
         return false;
     }
-    for b in beta.iter_mut() {
-        *b /= survive;
-    }
+    *beta /= survive;
     true
 }
 
@@ -172,9 +170,7 @@ impl<'a> Integrator<'a> {
             if rng.uniform() >= survive {
                 return Some((0, window));
             }
-            for b in beta.iter_mut() {
-                *b /= survive;
-            }
+            *beta /= survive;
             return Some((1, window));
         }
         if expected >= SPLIT_WEIGHT {
