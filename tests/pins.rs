@@ -68,8 +68,8 @@ fn probe_hash(preset: &str) -> u64 {
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
     ("midday", 0x401cb31debd50291, 0x2b158d215cf7a6ac),
-    ("sunset", 0x92d81206f23823d9, 0xcfac1240f3562106),
-    ("twilight", 0x9a095f6ba554ec2d, 0xf8ef9eb31fc9c159),
+    ("sunset", 0x0c50cb39ed7b03f1, 0xd97afeec127c6022),
+    ("twilight", 0x2911c9d5a2b53b15, 0xdf2eee5478779802),
     ("space", 0x2414ea41fcf39ccd, 0xa09d945a1cd8d6e5),
 ];
 

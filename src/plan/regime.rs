@@ -129,7 +129,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
         Regime::Twilight,
         RegimeDefaults {
             sunlight_samples: 1,
-            camera_branches: 4,
+            camera_branches: 12,
             camera_importance: 0.5,
             sun_lobe: 0.3,
             sky_guide: 0.35,
@@ -144,7 +144,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
         Regime::Sunset,
         RegimeDefaults {
             sunlight_samples: 1,
-            camera_branches: 4,
+            camera_branches: 12,
             camera_importance: 0.5,
             sun_lobe: 0.3,
             sky_guide: 0.25,
