@@ -694,6 +694,14 @@ fn sky_guide_is_unbiased() {
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
                 },
+                // The same splitting on delta-tracked segments: one path
+                // loop serves every segment estimator.
+                IntegratorOptions {
+                    sunlight_samples: Some(0),
+                    splitting: Some(true),
+                    max_scattering_order: order,
+                    ..IntegratorOptions::default()
+                },
             ];
             for (k, options) in (401..).zip(variants) {
                 let what = format!(
