@@ -68,8 +68,8 @@ fn probe_hash(preset: &str) -> u64 {
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
     ("midday", 0x401cb31debd50291, 0x2b158d215cf7a6ac),
-    ("sunset", 0x0c50cb39ed7b03f1, 0xd97afeec127c6022),
-    ("twilight", 0x2911c9d5a2b53b15, 0xdf2eee5478779802),
+    ("sunset", 0x8e72e3c3284370a1, 0xc5da574f06bf6700),
+    ("twilight", 0x451ac78bb9c17b7d, 0xf70e2b92d3ef8c13),
     ("space", 0x2414ea41fcf39ccd, 0xa09d945a1cd8d6e5),
 ];
 

@@ -64,6 +64,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("sky_guide_sunlit=true", |s| {
             s.render.integrator.sky_guide_sunlit = Some(true);
         }),
+        ("ground_guide=0", |s| {
+            s.render.integrator.ground_guide = Some(0.0);
+        }),
         ("sky_guide=0.5", |s| {
             s.render.integrator.sky_guide = Some(0.5);
         }),

@@ -205,6 +205,8 @@ pub struct DirectionPlan {
     pub sky_guide: f64,
     /// The guide at sunlit points too.
     pub sky_guide_sunlit: bool,
+    /// Share of the ground's bounce directions from the guide's table.
+    pub ground_guide: f64,
 }
 
 /// How paths end.
@@ -293,6 +295,7 @@ impl TechniquePlan {
                 }),
                 sky_guide: options.sky_guide.unwrap_or(row.sky_guide),
                 sky_guide_sunlit: options.sky_guide_sunlit.unwrap_or(row.sky_guide_sunlit),
+                ground_guide: options.ground_guide.unwrap_or(row.ground_guide),
             },
             termination: TerminationPlan {
                 russian_roulette: options.russian_roulette,
@@ -377,6 +380,7 @@ impl TechniquePlan {
     /// importance.
     pub fn needs_sky_guide(&self) -> bool {
         self.directions.sky_guide > 0.0
+            || self.directions.ground_guide > 0.0
             || self.segments.shadow_samples > 0
             || self.segments.sunlight_samples > 0
             || self.camera.importance > 0.0
@@ -409,6 +413,7 @@ mod tests {
             assert_eq!(plan.camera.importance, row.camera_importance);
             assert_eq!(plan.directions.sky_guide, row.sky_guide);
             assert_eq!(plan.directions.sky_guide_sunlit, row.sky_guide_sunlit);
+            assert_eq!(plan.directions.ground_guide, row.ground_guide);
             assert_eq!(plan.termination.splitting, row.splitting);
             assert_eq!(plan.control_variate, row.control_variate);
             assert_eq!(plan.circle_splatting, row.circle_splatting);
@@ -438,6 +443,7 @@ mod tests {
             sun_lobe: Some(0.4),
             sky_guide: Some(0.1),
             sky_guide_sunlit: Some(false),
+            ground_guide: Some(0.7),
             splitting: Some(false),
             control_variate: Some(false),
             circle_splatting: Some(false),
@@ -455,6 +461,7 @@ mod tests {
             assert_eq!(plan.directions.sun_lobe, 0.4);
             assert_eq!(plan.directions.sky_guide, 0.1);
             assert!(!plan.directions.sky_guide_sunlit);
+            assert_eq!(plan.directions.ground_guide, 0.7);
             assert!(!plan.termination.splitting && !plan.control_variate);
             assert!(!plan.circle_splatting);
         }

@@ -57,6 +57,13 @@ pub struct IntegratorOptions {
     /// the sun low, the glow over the sun's azimuth holds much of the light
     /// even a sunlit vertex sees). Unset: the regime table's.
     pub sky_guide_sunlit: Option<bool>,
+    /// Share of the ground's bounce directions drawn from the sky guide's
+    /// table at the ground point instead of the cosine density, 0–1 (a
+    /// direction below the horizon ends the path: the cosine weights it
+    /// zero). At low sun the sky's light on the ground comes mostly from
+    /// a band of bright sky low over the sun's azimuth, where the cosine
+    /// density is small. Unset: the regime table's.
+    pub ground_guide: Option<f64>,
     /// Next-event points on each path segment that starts in the planet's
     /// shadow, drawn from the expected sunlight along it as the sky guide
     /// tabulates it (the path goes on from its first real scattering),
@@ -115,6 +122,7 @@ impl Default for IntegratorOptions {
             sun_lobe: None,
             sky_guide: None,
             sky_guide_sunlit: None,
+            ground_guide: None,
             shadow_samples: 0,
             forced_collision_depth: 1,
             russian_roulette: true,

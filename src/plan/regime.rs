@@ -100,6 +100,9 @@ pub struct RegimeDefaults {
     pub sky_guide: f64,
     /// The guide at sunlit points too (`sky_guide_sunlit`).
     pub sky_guide_sunlit: bool,
+    /// Share of the ground's bounce directions from the guide's table
+    /// (`ground_guide`).
+    pub ground_guide: f64,
     /// Roulette and splitting by importance (`splitting`), where roulette
     /// is on.
     pub splitting: bool,
@@ -134,6 +137,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.3,
             sky_guide: 0.35,
             sky_guide_sunlit: true,
+            ground_guide: 0.5,
             splitting: true,
             control_variate: false,
             circle_splatting: true,
@@ -149,6 +153,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.3,
             sky_guide: 0.25,
             sky_guide_sunlit: true,
+            ground_guide: 0.5,
             splitting: false,
             control_variate: true,
             circle_splatting: true,
@@ -164,6 +169,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.3,
             sky_guide: 0.25,
             sky_guide_sunlit: false,
+            ground_guide: 0.0,
             splitting: false,
             control_variate: false,
             circle_splatting: true,
@@ -179,6 +185,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.3,
             sky_guide: 0.25,
             sky_guide_sunlit: false,
+            ground_guide: 0.0,
             splitting: false,
             control_variate: false,
             circle_splatting: false,
@@ -194,6 +201,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.15,
             sky_guide: 0.25,
             sky_guide_sunlit: false,
+            ground_guide: 0.0,
             splitting: false,
             control_variate: false,
             circle_splatting: false,
@@ -230,12 +238,12 @@ fn fraction(w: f64) -> String {
 /// README's copy equal to this).
 pub fn markdown_table() -> String {
     let mut rows = vec![
-        "| regime | sun elevation | `sunlight_samples` | `camera_branches` | `camera_importance` | `sun_lobe` | `sky_guide` | `sky_guide_sunlit` | `splitting` | `control_variate` | `circle_splatting` | draft weight |".to_string(),
-        "|---|---|---|---|---|---|---|---|---|---|---|---|".to_string(),
+        "| regime | sun elevation | `sunlight_samples` | `camera_branches` | `camera_importance` | `sun_lobe` | `sky_guide` | `sky_guide_sunlit` | `ground_guide` | `splitting` | `control_variate` | `circle_splatting` | draft weight |".to_string(),
+        "|---|---|---|---|---|---|---|---|---|---|---|---|---|".to_string(),
     ];
     for (regime, d) in REGIMES {
         rows.push(format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             regime.name(),
             band(regime),
             d.sunlight_samples,
@@ -244,6 +252,7 @@ pub fn markdown_table() -> String {
             d.sun_lobe,
             d.sky_guide,
             on(d.sky_guide_sunlit),
+            d.ground_guide,
             on(d.splitting),
             on(d.control_variate),
             on(d.circle_splatting),

@@ -665,6 +665,9 @@ impl Scene {
         if let Some(share) = i.sky_guide {
             check_range("sky guide", share, 0.0, 1.0)?;
         }
+        if let Some(share) = i.ground_guide {
+            check_range("ground guide", share, 0.0, 1.0)?;
+        }
         if let Some(share) = i.camera_importance {
             check_range("camera importance", share, 0.0, 1.0)?;
         }
@@ -876,6 +879,7 @@ mod tests {
             ("shadow_samples = 9", "shadow samples", "0 to 8"),
             ("sun_lobe = 1.5", "sun lobe", "0 to 1"),
             ("sky_guide = -0.1", "sky guide", "0 to 1"),
+            ("ground_guide = 1.5", "ground guide", "0 to 1"),
             ("camera_importance = 1.5", "camera importance", "0 to 1"),
             (
                 "forced_collision_depth = 65",

@@ -1,7 +1,11 @@
-//! The Lambertian ground: the sunlight it reflects straight to a path (its
-//! bounce is [`Integrator::ground_bounce`]).
+//! The Lambertian ground: the sunlight it reflects straight to a path and
+//! the direction of its bounce (the bounce itself is
+//! [`Integrator::ground_bounce`]).
 
-use super::{ground_point, DVec3, Integrator, Lanes, Light, Rng, SpectralLanes, PI};
+use super::{
+    cosine_sample_hemisphere, ground_point, DVec3, GuideAt, Integrator, Lanes, Light, Rng,
+    SpectralLanes, PI,
+};
 
 impl Integrator<'_> {
     /// The sun's direct light reflected at a ground vertex with normal
@@ -27,5 +31,41 @@ impl Integrator<'_> {
                 radiance.total += *beta * lanes.ground_albedo / PI * cos * e_sun * tr;
             }
         }
+    }
+
+    /// A bounce direction off the ground under unit `normal` and the
+    /// factor cos/(π pdf) it carries (1 for a cosine-weighted one), or
+    /// `None` where it points into the ground (the Lambertian kernel is
+    /// zero there, so ending the path adds exactly what it would).
+    ///
+    /// With `ground_guide` = g > 0 the direction comes from the sky
+    /// guide's table at the ground point with probability g, else from the
+    /// cosine density, and carries the mixture's density (one-sample MIS,
+    /// balance heuristic; Veach 1997, §9.2.4): pdf = (1 − g) cos/π +
+    /// g p_guide. With the sun low, the light reaching the ground comes
+    /// mostly from a band of sky a few degrees high over the sun's azimuth,
+    /// where the cosine density is smallest; the guide's table of
+    /// once-scattered light holds that band.
+    pub(super) fn bounce_direction(&self, normal: DVec3, rng: &mut Rng) -> Option<(DVec3, f64)> {
+        let share = self.plan.directions.ground_guide;
+        let at = self
+            .guide
+            .filter(|_| share > 0.0)
+            .map(|g| g.at(self.medium, ground_point(self.medium, normal)))
+            .filter(GuideAt::guides);
+        let Some(at) = at else {
+            return Some((cosine_sample_hemisphere(normal, rng), 1.0));
+        };
+        let bounce = if rng.uniform() < share {
+            at.sample(rng).0
+        } else {
+            cosine_sample_hemisphere(normal, rng)
+        };
+        let cos = normal.dot(bounce);
+        if cos <= 0.0 {
+            return None;
+        }
+        let pdf = (1.0 - share) * cos / PI + share * at.pdf(bounce);
+        Some((bounce, cos / PI / pdf))
     }
 }

@@ -17,8 +17,8 @@
 
 use super::termination::{Walk, Window};
 use super::{
-    cosine_sample_hemisphere, ground_point, real_scattering, DVec3, GuideAt, Integrator, Lanes,
-    Light, Next, Rng, Segment, SpectralLanes, Start, Vertex,
+    ground_point, real_scattering, DVec3, GuideAt, Integrator, Lanes, Light, Next, Rng, Segment,
+    SpectralLanes, Start, Vertex,
 };
 use crate::plan::SegmentEstimator;
 use crate::render::guide::SkyGuide;
@@ -285,8 +285,9 @@ impl<'a> Integrator<'a> {
     }
 
     /// The Lambertian ground's bounce under unit `normal`, reached after
-    /// `depth` scatterings with weight `beta`: a cosine-weighted direction
-    /// (BRDF · cos / pdf = albedo), with the control variate's share taken
+    /// `depth` scatterings with weight `beta`: a direction from
+    /// [`Integrator::bounce_direction`] (BRDF · cos / pdf = albedo for a
+    /// cosine-weighted one), with the control variate's share taken
     /// out where the plan controls the ground
     /// ([`Integrator::ground_control`]); `None` where no order beyond it is
     /// wanted or the ground is black.
@@ -304,8 +305,8 @@ impl<'a> Integrator<'a> {
         {
             return None;
         }
-        let bounce = cosine_sample_hemisphere(normal, rng);
-        let beta = *beta * lanes.ground_albedo;
+        let (bounce, reflect) = self.bounce_direction(normal, rng)?;
+        let beta = *beta * lanes.ground_albedo * reflect;
         self.ground_control(normal, bounce, &beta, lanes, radiance, rng);
         Some(Next::Vertex((
             ground_point(self.medium, normal),

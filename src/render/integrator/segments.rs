@@ -4,9 +4,9 @@
 //! collision of delta tracking.
 
 use super::{
-    cosine_sample_hemisphere, ground_point, rayleigh, Branches, Component, DVec3, GuideAt,
-    InScatterDistribution, Integrator, Lanes, Light, Next, Rng, Segment, SegmentDensity, Span,
-    SpectralLanes, DIRECTION_UNIFORMS, MAX_BRANCHES, MAX_SUNLIGHT_SAMPLES,
+    ground_point, rayleigh, Branches, Component, DVec3, GuideAt, InScatterDistribution, Integrator,
+    Lanes, Light, Next, Rng, Segment, SegmentDensity, Span, SpectralLanes, DIRECTION_UNIFORMS,
+    MAX_BRANCHES, MAX_SUNLIGHT_SAMPLES,
 };
 
 impl<'a> Integrator<'a> {
@@ -233,7 +233,12 @@ impl<'a> Integrator<'a> {
                     .zip(&direction_u)
                     .filter(|((_, &f), _)| !f)
                 {
-                    let bounce = rng.replaying(u, |rng| cosine_sample_hemisphere(normal, rng));
+                    let Some((bounce, reflect)) =
+                        rng.replaying(u, |rng| self.bounce_direction(normal, rng))
+                    else {
+                        continue;
+                    };
+                    let weight = weight * reflect;
                     self.ground_control(normal, bounce, &weight, lanes, radiance, rng);
                     *slot = Some((x, bounce, weight));
                 }
