@@ -64,7 +64,7 @@
 //! comes from the sunlit air above the horizon, which no phase function
 //! about a fixed axis finds. With the sun low, sunlit points are guided
 //! too (`sky_guide_sunlit`), and so are the ground's bounces
-//! (`ground_guide`, [`Integrator::bounce_direction`]): the sky's light on
+//! (`ground_guide`, `Integrator::bounce_direction`): the sky's light on
 //! the ground then comes from low over the sun's azimuth, where the
 //! cosine density is smallest.
 //!
