@@ -7,7 +7,7 @@ use super::{
     SpectralLanes, PI,
 };
 
-impl Integrator<'_> {
+impl<'a> Integrator<'a> {
     /// The sun's direct light reflected at a ground vertex with normal
     /// `normal`, reached after `depth` scatterings with weight `beta`.
     pub(super) fn ground_direct(
@@ -33,6 +33,16 @@ impl Integrator<'_> {
         }
     }
 
+    /// The sky guide at the ground point under unit `normal`, where the
+    /// plan draws bounce directions from it (`ground_guide`) and it has
+    /// light to guide toward.
+    pub(super) fn bounce_guide(&self, normal: DVec3) -> Option<GuideAt<'a>> {
+        self.guide
+            .filter(|_| self.plan.directions.ground_guide > 0.0)
+            .map(|g| g.at(self.medium, ground_point(self.medium, normal)))
+            .filter(GuideAt::guides)
+    }
+
     /// A bounce direction off the ground under unit `normal` and the
     /// factor cos/(π pdf) it carries (1 for a cosine-weighted one), or
     /// `None` where it points into the ground (the Lambertian kernel is
@@ -46,14 +56,17 @@ impl Integrator<'_> {
     /// mostly from a band of sky a few degrees high over the sun's azimuth,
     /// where the cosine density is smallest; the guide's table of
     /// once-scattered light holds that band.
-    pub(super) fn bounce_direction(&self, normal: DVec3, rng: &mut Rng) -> Option<(DVec3, f64)> {
+    ///
+    /// `guide` is [`Self::bounce_guide`] at the same ground point, looked
+    /// up once for all the bounces that leave it.
+    pub(super) fn bounce_direction(
+        &self,
+        normal: DVec3,
+        guide: Option<&GuideAt<'_>>,
+        rng: &mut Rng,
+    ) -> Option<(DVec3, f64)> {
         let share = self.plan.directions.ground_guide;
-        let at = self
-            .guide
-            .filter(|_| share > 0.0)
-            .map(|g| g.at(self.medium, ground_point(self.medium, normal)))
-            .filter(GuideAt::guides);
-        let Some(at) = at else {
+        let Some(at) = guide else {
             return Some((cosine_sample_hemisphere(normal, rng), 1.0));
         };
         let bounce = if rng.uniform() < share {

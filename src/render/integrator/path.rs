@@ -305,7 +305,8 @@ impl<'a> Integrator<'a> {
         {
             return None;
         }
-        let (bounce, reflect) = self.bounce_direction(normal, rng)?;
+        let guide = self.bounce_guide(normal);
+        let (bounce, reflect) = self.bounce_direction(normal, guide.as_ref(), rng)?;
         let beta = *beta * lanes.ground_albedo * reflect;
         self.ground_control(normal, bounce, &beta, lanes, radiance, rng);
         Some(Next::Vertex((

@@ -224,6 +224,7 @@ impl<'a> Integrator<'a> {
             if ground_goes_on {
                 // Each ground branch bounces on its own (see `Integrator::ground_bounce`).
                 let x = ground_point(self.medium, normal);
+                let guide = self.bounce_guide(normal);
                 let weight: Lanes = Lanes::from_fn(|j| {
                     through[j] * lanes.ground_albedo[j] * share / (1.0 - p_medium)
                 });
@@ -234,7 +235,7 @@ impl<'a> Integrator<'a> {
                     .filter(|((_, &f), _)| !f)
                 {
                     let Some((bounce, reflect)) =
-                        rng.replaying(u, |rng| self.bounce_direction(normal, rng))
+                        rng.replaying(u, |rng| self.bounce_direction(normal, guide.as_ref(), rng))
                     else {
                         continue;
                     };
