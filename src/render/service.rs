@@ -82,7 +82,7 @@ pub struct Frame {
 }
 
 /// The sky model's typical RMS error over a whole image, relative to its
-/// mean luminance: 13–35 % over the bench's scenes (`BENCHMARKS.md`, "The
+/// mean luminance: 13–29 % over the bench's scenes (`BENCHMARKS.md`, "The
 /// preview's first frame").
 pub const MODEL_ERROR: f64 = 0.2;
 

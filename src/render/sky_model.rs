@@ -88,8 +88,8 @@ pub struct SkyModel {
     view: Vec<[Spectrum; 3]>,
     /// Zenith, the horizontal toward the sun, and across, at the observer.
     frame: [DVec3; 3],
-    /// Elevation of the observer's horizon, radians (≤ 0).
-    horizon_rad: f64,
+    /// The elevations of the view table's rows.
+    rows: Rows,
     sun_direction: DVec3,
     /// The phase functions at each wavelength.
     phases: Phases,
@@ -558,16 +558,12 @@ impl SkyModel {
         };
         let frame = [zenith, x, zenith.cross(x)];
         let r = observer_m.length();
-        // The horizon dips by acos(R/r) below the horizontal.
-        let horizon_rad = (-horizon_cosine(medium.planet_radius_m, r.max(medium.planet_radius_m)))
-            .clamp(0.0, 1.0)
-            .asin()
-            - PI / 2.0;
+        let rows = Rows::new(medium.planet_radius_m, medium.top_radius_m, r);
         let view = (0..VIEW_ROWS * VIEW_COLUMNS)
             .into_par_iter()
             .map(|texel| {
                 let (row, column) = (texel / VIEW_COLUMNS, texel % VIEW_COLUMNS);
-                let elevation = elevation_of_row(row as f64, horizon_rad);
+                let elevation = rows.elevation(row as f64);
                 let azimuth = PI * column as f64 / (VIEW_COLUMNS - 1) as f64;
                 let dir = direction(&frame, elevation, azimuth);
                 let g = optics.march(observer_m, dir, VIEW_STEPS, Some(ms), Some(sky));
@@ -577,7 +573,7 @@ impl SkyModel {
         Self {
             view,
             frame,
-            horizon_rad,
+            rows,
             sun_direction,
             xyz_weights: xyz_weights(medium, lane_table, cmf, &nodes),
             phases: field.phases,
@@ -590,7 +586,7 @@ impl SkyModel {
         let [zenith, x, y] = self.frame;
         let elevation = dir.dot(zenith).clamp(-1.0, 1.0).asin();
         let azimuth = dir.dot(y).atan2(dir.dot(x)).abs();
-        let row = row_of_elevation(elevation, self.horizon_rad);
+        let row = self.rows.row(elevation);
         let column = azimuth / PI * (VIEW_COLUMNS - 1) as f64;
         let pick = |n: usize| {
             let at = |texel: &[Spectrum; 3]| texel[n];
@@ -701,27 +697,64 @@ fn altitude_index(altitude_m: f64, n: usize, top_m: f64) -> f64 {
     (altitude_m / top_m).clamp(0.0, 1.0).sqrt() * (n - 1) as f64
 }
 
-/// Elevation of fractional `row`: rows crowd about the horizon (at
-/// `horizon_rad`), where the sky changes fastest (Hillaire's mapping).
-fn elevation_of_row(row: f64, horizon_rad: f64) -> f64 {
-    let v = row / (VIEW_ROWS - 1) as f64;
-    if v >= 0.5 {
-        let u = 2.0 * v - 1.0;
-        horizon_rad + u * u * (PI / 2.0 - horizon_rad)
-    } else {
-        let u = 1.0 - 2.0 * v;
-        horizon_rad - u * u * (PI / 2.0 + horizon_rad)
-    }
+/// The observer's sky table's rows: elevations crowding about the horizon
+/// (at `horizon_rad`), where the sky changes fastest (Hillaire's mapping),
+/// the upper half ending at `top_rad`, the highest elevation at which a
+/// view ray still meets the air (π/2 inside the atmosphere; the grazing
+/// ray of its top from outside, where the bright limb is a few tenths of
+/// a degree high and would otherwise fall between two rows).
+#[derive(Clone, Copy)]
+struct Rows {
+    horizon_rad: f64,
+    top_rad: f64,
 }
 
-/// [`elevation_of_row`]'s inverse.
-fn row_of_elevation(elevation: f64, horizon_rad: f64) -> f64 {
-    let v = if elevation >= horizon_rad {
-        0.5 + 0.5 * ((elevation - horizon_rad) / (PI / 2.0 - horizon_rad)).sqrt()
-    } else {
-        0.5 - 0.5 * ((horizon_rad - elevation) / (PI / 2.0 + horizon_rad)).sqrt()
-    };
-    v.clamp(0.0, 1.0) * (VIEW_ROWS - 1) as f64
+impl Rows {
+    /// The rows of an observer `r_m` from the centre of a planet of
+    /// radius `planet_radius_m` with an atmosphere up to `top_radius_m`.
+    fn new(planet_radius_m: f64, top_radius_m: f64, r_m: f64) -> Self {
+        // The horizon dips by acos(R/r) below the horizontal: its elevation
+        // is the arcsine of its zenith cosine, −√(1 − (R/r)²).
+        let below = |radius_m: f64| {
+            horizon_cosine(radius_m, r_m.max(radius_m))
+                .clamp(-1.0, 0.0)
+                .asin()
+        };
+        let horizon_rad = below(planet_radius_m);
+        let top_rad = if r_m > top_radius_m {
+            below(top_radius_m)
+        } else {
+            PI / 2.0
+        };
+        Self {
+            horizon_rad,
+            top_rad,
+        }
+    }
+
+    /// Elevation of fractional `row`.
+    fn elevation(&self, row: f64) -> f64 {
+        let v = row / (VIEW_ROWS - 1) as f64;
+        if v >= 0.5 {
+            let u = 2.0 * v - 1.0;
+            self.horizon_rad + u * u * (self.top_rad - self.horizon_rad)
+        } else {
+            let u = 1.0 - 2.0 * v;
+            self.horizon_rad - u * u * (PI / 2.0 + self.horizon_rad)
+        }
+    }
+
+    /// Fractional row of `elevation` ([`Self::elevation`]'s inverse; the
+    /// last row above `top_rad`).
+    fn row(&self, elevation: f64) -> f64 {
+        let h = self.horizon_rad;
+        let v = if elevation >= h {
+            0.5 + 0.5 * ((elevation - h) / (self.top_rad - h)).min(1.0).sqrt()
+        } else {
+            0.5 - 0.5 * ((h - elevation) / (PI / 2.0 + h)).sqrt()
+        };
+        v.clamp(0.0, 1.0) * (VIEW_ROWS - 1) as f64
+    }
 }
 
 /// The direction at `elevation` and `azimuth` from the sun in `frame`.
@@ -778,4 +811,60 @@ fn bilinear_with<T>(
         let hi = c[n] + fk * (d[n] - c[n]);
         lo + fi * (hi - lo)
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::Renderer;
+    use crate::Scene;
+
+    /// The observer's table against the march it tabulates, at elevations
+    /// about the horizon (where the sky's light drops by two orders of
+    /// magnitude to the ground's), for an observer on the ground and one
+    /// in orbit (horizon 20° below the horizontal).
+    #[test]
+    fn the_view_table_matches_its_march_about_the_horizon() {
+        for name in ["sunset", "space"] {
+            let renderer = Renderer::new(&Scene::preset(name).unwrap()).unwrap();
+            let (medium, sun) = (&renderer.medium, renderer.sun_direction);
+            let model = SkyModel::new(
+                medium,
+                &renderer.lane_table,
+                renderer.cmf,
+                sun,
+                renderer.observer_m,
+            );
+            let field = ModelField::new(medium, &renderer.lane_table, sun);
+            let [zenith, x, y] = model.frame;
+            // (exact, table) luminance per view.
+            let mut pairs = Vec::new();
+            for step in -20..=20 {
+                // Half-degree steps about the horizon (its dip is
+                // acos(R/r)), between the table's rows.
+                let dip = (medium.planet_radius_m / renderer.observer_m.length()).acos();
+                let elevation = -dip + (f64::from(step) + 0.25) * 0.5_f64.to_radians();
+                for azimuth_deg in [30.0_f64, 90.0, 150.0] {
+                    let dir = direction(&[zenith, x, y], elevation, azimuth_deg.to_radians());
+                    let response = field.radiance(medium, renderer.observer_m, dir);
+                    let exact: f64 = (0..NODES)
+                        .map(|n| response[n] * model.xyz_weights[n][1])
+                        .sum();
+                    pairs.push((exact, model.xyz(dir)[1]));
+                }
+            }
+            // Off by the view's own light, or by a thousandth of the
+            // brightest where the light is far below it (the limb's top
+            // from orbit, the sky's drop to the ground).
+            let peak = pairs.iter().map(|p| p.0).fold(0.0, f64::max);
+            let worst = pairs
+                .iter()
+                .map(|&(exact, table)| (table - exact).abs() / exact.max(1e-3 * peak))
+                .fold(0.0, f64::max);
+            // Bilinear interpolation between rows a fraction of a degree
+            // apart at the horizon: a few per cent where the light changes
+            // fastest.
+            assert!(worst < 0.05, "{name}: table off its march by {worst}");
+        }
+    }
 }
