@@ -5,23 +5,26 @@
 //! **Method** (Hillaire 2020, "A Scalable and Production Ready Sky and
 //! Atmosphere Rendering Technique", *Computer Graphics Forum* 39(4)): the
 //! same coefficients, phase functions and sun ([`Medium`], [`SpectralLanes`])
-//! at 16 wavelengths, with three approximations, each a table:
+//! at 16 wavelengths, with three approximations, each a table (the second
+//! computed as Bruneton & Neyret do):
 //!
 //! 1. *Sunlight* reaching a point is the straight-line transmittance from
 //!    its column amounts toward the sun ([`Medium::sun_columns`]); zero in
 //!    the planet's shadow.
 //! 2. *Light scattered twice or more* at a point depends on its altitude,
-//!    the solar zenith and the angle between the view and the sun:
-//!    Ψ_X(r, μ_s, ν) = F_ms Σ_ω L₁(ω) P_X(ω·v) Δω for the Rayleigh and
-//!    aerosol phase functions P_X, L₁ the once-scattered light (and the
-//!    lit ground) arriving from ω, and F_ms = 1/(1 − f_ms) Hillaire's
-//!    factor for the orders past the second (f_ms the share of isotropic
-//!    light a point's surroundings scatter back to it; his eqs. 5–10).
-//!    Hillaire takes this light as isotropic; at low sun most of it is the
-//!    haze's forward scattering about the sun, which an isotropic table
-//!    spreads over the whole sky (the sky near the setting sun then comes
-//!    out far too dark: `BENCHMARKS.md`), so the second scattering keeps
-//!    the phase functions.
+//!    the solar zenith and the angle between the view and the sun, order
+//!    by order (Bruneton & Neyret 2008, "Precomputed Atmospheric
+//!    Scattering", *Computer Graphics Forum* 27(4)): the table of order
+//!    n + 1 is J_X(r, μ_s, ν) = Σ_ω L_n(ω) P_X(ω·v) Δω for the Rayleigh
+//!    and aerosol phase functions P_X, L_n the light of order n arriving
+//!    from ω (the air's, marched through the table of order n, and the
+//!    ground's, lit by the sky of order n − 1). Orders 2–4 are computed;
+//!    the rest are each entry's geometric tail. Hillaire's isotropic
+//!    factor for the orders past the second takes their light as made at
+//!    the point itself and isotropic; at the horizon and at twilight it
+//!    arrives from far away and that factor leaves out a fifth of it.
+//!    The phase functions are kept in every order: at low sun most of the
+//!    light is haze's forward scattering about the sun.
 //! 3. *The sky seen from the observer* is smooth in direction once the
 //!    phase functions are taken out: along a view ray the angle to the sun
 //!    is fixed, so the single scattering is P_R(θ) A_R + P_A(θ) A_A with
@@ -79,9 +82,6 @@ const VIEW_COLUMNS: usize = 32;
 /// A quantity at the model's wavelengths.
 type Spectrum = [f64; NODES];
 
-/// The isotropic phase function, sr⁻¹.
-const ISOTROPIC: f64 = 1.0 / (4.0 * PI);
-
 /// The approximate sky of one scene.
 pub struct SkyModel {
     /// The observer's sky: per texel, A_R, A_A and B at each wavelength.
@@ -136,17 +136,9 @@ impl Optics<'_> {
 
     /// Marches from `origin` along `dir` in `steps` (lengths growing as
     /// the square, short where the ray starts), gathering the sunlight
-    /// scattered toward `origin`, the multiple scattering `ms` (if given),
-    /// and the ground's light where the ray ends on it, lit by the sun and
-    /// (if given) the sky's irradiance `sky`.
-    fn march(
-        &self,
-        origin: DVec3,
-        dir: DVec3,
-        steps: usize,
-        ms: Option<&MsTable>,
-        sky: Option<&SkyIrradiance>,
-    ) -> Gathered {
+    /// scattered toward `origin`, the multiple scattering and the ground's
+    /// light where the ray ends on it, as `sources` says.
+    fn march(&self, origin: DVec3, dir: DVec3, steps: usize, sources: Sources<'_>) -> Gathered {
         let mut out = Gathered::default();
         let Some(span) = self.medium.span(origin, dir) else {
             return out;
@@ -160,8 +152,14 @@ impl Optics<'_> {
             let dt = t1 - t0;
             let x = origin + dir * (0.5 * (t0 + t1));
             let r = x.length();
-            let sun = self.sun_transmittance(x);
-            let psi = ms.map(|m| m.at(r, x.dot(self.sun_direction) / r, nu));
+            let sun = if sources.sunlight {
+                self.sun_transmittance(x)
+            } else {
+                [0.0; NODES]
+            };
+            let psi = sources
+                .ms
+                .map(|m| m.at(r, x.dot(self.sun_direction) / r, nu));
             for (g, lanes) in self.groups.iter().enumerate() {
                 let c = self.medium.coefficients(r, lanes);
                 for j in 0..LANES {
@@ -188,9 +186,15 @@ impl Optics<'_> {
         }
         if span.hits_ground {
             let g = origin + dir * span.t_exit;
-            let mu_sun = (g.dot(self.sun_direction) / g.length()).max(0.0);
-            let sun = self.sun_transmittance(g);
-            let irradiance = sky.map(|s| s.at(g.dot(self.sun_direction) / g.length()));
+            let (mu_sun, sun) = if sources.ground_sun {
+                let mu = (g.dot(self.sun_direction) / g.length()).max(0.0);
+                (mu, self.sun_transmittance(g))
+            } else {
+                (0.0, [0.0; NODES])
+            };
+            let irradiance = sources
+                .ground_sky
+                .map(|s| s.at(g.dot(self.sun_direction) / g.length()));
             for (group, lanes) in self.groups.iter().enumerate() {
                 for j in 0..LANES {
                     let k = group * LANES + j;
@@ -264,20 +268,46 @@ impl Phases {
     }
 }
 
-/// Ψ(r, μ_s, ν): the light scattered twice or more toward a point's
-/// viewer, per unit Rayleigh and aerosol scattering coefficient, by the
-/// cosine ν between the view and the sun. Hillaire's table takes this
-/// light as isotropic; at low sun most of it is haze's forward
-/// scattering about the sun, so here the second scattering keeps the
-/// phase functions: Ψ_X(ν) = F_ms Σ_ω L₁(ω) P_X(ω·v) Δω, L₁ the once-
-/// scattered light (and lit ground) arriving from ω with the true phase
-/// functions, v at ν from the sun (averaged over two azimuths about it),
-/// and F_ms = 1/(1 − f_ms) Hillaire's isotropic factor for the orders past
-/// the second.
+/// The light a march gathers.
+#[derive(Clone, Copy)]
+struct Sources<'a> {
+    /// Sunlight scattered once along the ray.
+    sunlight: bool,
+    /// Light scattered twice or more along the ray, per unit scattering
+    /// coefficient.
+    ms: Option<&'a MsTable>,
+    /// The sun on the ground where the ray ends on it.
+    ground_sun: bool,
+    /// The sky's irradiance on the ground where the ray ends on it.
+    ground_sky: Option<&'a SkyIrradiance>,
+}
+
+impl<'a> Sources<'a> {
+    /// Everything: what an observer sees.
+    fn all(ms: &'a MsTable, sky: &'a SkyIrradiance) -> Self {
+        Self {
+            sunlight: true,
+            ms: Some(ms),
+            ground_sun: true,
+            ground_sky: Some(sky),
+        }
+    }
+}
+
+/// Light scattered twice or more toward a point's viewer, per unit
+/// Rayleigh and aerosol scattering coefficient, by the point's altitude,
+/// solar zenith and the cosine ν between the view and the sun. One
+/// order's table is J_{n+1,X}(ν) = Σ_ω L_n(ω) P_X(ω·v) Δω for the
+/// phase functions P_X, L_n the light of order n arriving from ω (the
+/// air's and the ground's), v at ν from the sun (averaged over two
+/// azimuths about it): Bruneton & Neyret's (2008) iteration over
+/// scattering orders, with the view's zenith folded into ν. The model's
+/// Ψ is the sum over orders ([`scattering_orders`]).
+#[derive(Clone)]
 struct MsTable {
     planet_radius_m: f64,
     top_m: f64,
-    /// Per (altitude, zenith, ν): (Ψ_R, Ψ_A).
+    /// Per (altitude, zenith, ν): (J_R, J_A).
     values: Vec<[Spectrum; 2]>,
 }
 
@@ -294,7 +324,11 @@ fn view_cosine_index(nu: f64) -> f64 {
 }
 
 impl MsTable {
-    fn new(optics: &Optics<'_>) -> Self {
+    /// The light scattered once more than `previous`'s: from the sunlight
+    /// scattered once (and the sunlit ground) without it, else from the
+    /// light of the previous order (its table J_n, and the ground lit by
+    /// the sky of the order before, E_{n−1}).
+    fn scattered(optics: &Optics<'_>, previous: Option<(&MsTable, &SkyIrradiance)>) -> Self {
         let medium = optics.medium;
         let (planet_radius_m, top_m) = (
             medium.planet_radius_m,
@@ -335,35 +369,48 @@ impl MsTable {
                     .flat_map(|i| {
                         let r = planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
                         let origin = DVec3::new(0.0, 0.0, r);
-                        let mut transfer = [0.0; NODES];
-                        let once: Vec<Spectrum> = directions
+                        let arriving: Vec<Spectrum> = directions
                             .iter()
                             .zip(&to_sun)
-                            .map(|(&dir, (pr, pa))| {
-                                let g = cell_optics.march(origin, dir, TABLE_STEPS, None, None);
-                                for (t, scattering) in transfer.iter_mut().zip(g.scattering) {
-                                    *t += scattering * ISOTROPIC * weight;
+                            .map(|(&dir, (pr, pa))| match previous {
+                                None => {
+                                    let once = Sources {
+                                        sunlight: true,
+                                        ms: None,
+                                        ground_sun: true,
+                                        ground_sky: None,
+                                    };
+                                    let g = cell_optics.march(origin, dir, TABLE_STEPS, once);
+                                    std::array::from_fn(|n| {
+                                        pr[n] * g.rayleigh[n]
+                                            + pa[n] * g.aerosol[n]
+                                            + g.isotropic[n]
+                                    })
                                 }
-                                std::array::from_fn(|n| {
-                                    pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n]
-                                })
+                                Some((table, sky)) => {
+                                    let order = Sources {
+                                        sunlight: false,
+                                        ms: Some(table),
+                                        ground_sun: false,
+                                        ground_sky: Some(sky),
+                                    };
+                                    cell_optics.march(origin, dir, TABLE_STEPS, order).isotropic
+                                }
                             })
                             .collect();
-                        let factor: Spectrum =
-                            std::array::from_fn(|n| 0.5 * weight / (1.0 - transfer[n].min(0.99)));
                         to_view
                             .chunks(2)
                             .map(|pair| {
                                 let mut out = [[0.0; NODES]; 2];
                                 for phases in pair {
-                                    for (l1, (pr, pa)) in once.iter().zip(phases) {
+                                    for (l, (pr, pa)) in arriving.iter().zip(phases) {
                                         for n in 0..NODES {
-                                            out[0][n] += l1[n] * pr[n];
-                                            out[1][n] += l1[n] * pa[n];
+                                            out[0][n] += l[n] * pr[n];
+                                            out[1][n] += l[n] * pa[n];
                                         }
                                     }
                                 }
-                                out.map(|o| std::array::from_fn(|n| o[n] * factor[n]))
+                                out.map(|o| std::array::from_fn(|n| o[n] * 0.5 * weight))
                             })
                             .collect::<Vec<_>>()
                     })
@@ -400,15 +447,17 @@ impl MsTable {
         );
         let (k, fk) = split(zenith_index(mu_s), MS_ZENITHS);
         let (a, fa) = split(view_cosine_index(nu), MS_VIEW_ANGLES);
-        let mut out = [[0.0; NODES]; 2];
-        for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
-            for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
+        // Linear in altitude and ν within each of the two solar-zenith
+        // slices, then geometric between them.
+        let slice = |k: usize| {
+            let mut out = [[0.0; NODES]; 2];
+            for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
                 for (da, wa) in [(0, 1.0 - fa), (1, fa)] {
-                    let w = wi * wk * wa;
+                    let w = wi * wa;
                     if w == 0.0 {
                         continue;
                     }
-                    let cell = ((i + di) * MS_ZENITHS + k + dk) * MS_VIEW_ANGLES + a + da;
+                    let cell = ((i + di) * MS_ZENITHS + k) * MS_VIEW_ANGLES + a + da;
                     let v = &self.values[cell];
                     for n in 0..NODES {
                         out[0][n] += w * v[0][n];
@@ -416,24 +465,53 @@ impl MsTable {
                     }
                 }
             }
-        }
-        out
+            out
+        };
+        let (low, high) = (slice(k), slice(k + 1));
+        [0, 1].map(|x| std::array::from_fn(|n| geometric(low[x][n], high[x][n], fk)))
     }
 }
 
-/// The sky's irradiance on the ground by solar-zenith cosine.
+/// Interpolation between `a` and `b` at fraction `f`: geometric where
+/// both are positive and differ by more than a quarter, else linear. The
+/// light past the first scattering falls off about exponentially with the
+/// sun's depression at twilight (the shadow rising through the air), and
+/// with table nodes a degree or two apart the linear mean there is up to
+/// 30 % too bright; where neighbours differ by less than a quarter the
+/// two means differ by less than 0.7 % (and the power is not paid for).
+fn geometric(a: f64, b: f64, f: f64) -> f64 {
+    let linear = a + f * (b - a);
+    if a > 0.0 && b > 0.0 && (b > 1.25 * a || a > 1.25 * b) {
+        a * (b / a).powf(f)
+    } else {
+        linear
+    }
+}
+
+/// The sky's irradiance on the ground by solar-zenith cosine (the sun's
+/// own left out), of one scattering order or the sum of several.
+#[derive(Clone)]
 struct SkyIrradiance {
     values: Vec<Spectrum>,
 }
 
 impl SkyIrradiance {
-    fn new(optics: &Optics<'_>, ms: &MsTable) -> Self {
+    /// The irradiance of the sunlight scattered once (without `ms`) or of
+    /// the light that `ms` scatters toward the ground.
+    fn scattered(optics: &Optics<'_>, ms: Option<&MsTable>) -> Self {
         let medium = optics.medium;
         let up: Vec<DVec3> = fibonacci_sphere(2 * MS_DIRECTIONS)
             .into_iter()
             .filter(|d| d.z > 0.0)
             .collect();
         let weight = 4.0 * PI / (2 * MS_DIRECTIONS) as f64;
+        // Looking up from the ground, no view ray ends on it.
+        let sources = Sources {
+            sunlight: ms.is_none(),
+            ms,
+            ground_sun: false,
+            ground_sky: None,
+        };
         let values = (0..MS_ZENITHS)
             .into_par_iter()
             .map(|k| {
@@ -441,12 +519,15 @@ impl SkyIrradiance {
                 let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1.0);
                 let mut e = [0.0; NODES];
                 for &dir in &up {
-                    let g = cell_optics.march(origin, dir, TABLE_STEPS, Some(ms), None);
-                    let (pr, pa) = cell_optics.phases(dir.dot(sun));
+                    let g = cell_optics.march(origin, dir, TABLE_STEPS, sources);
+                    let radiance: Spectrum = if ms.is_some() {
+                        g.isotropic
+                    } else {
+                        let (pr, pa) = cell_optics.phases(dir.dot(sun));
+                        std::array::from_fn(|n| pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n])
+                    };
                     for n in 0..NODES {
-                        let radiance =
-                            pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n];
-                        e[n] += radiance * dir.z * weight;
+                        e[n] += radiance[n] * dir.z * weight;
                     }
                 }
                 e
@@ -456,13 +537,89 @@ impl SkyIrradiance {
     }
 
     fn at(&self, mu_s: f64) -> Spectrum {
-        bilinear(
-            &self.values,
-            MS_ZENITHS,
-            (0.0, 1),
-            (zenith_index(mu_s), MS_ZENITHS),
-        )
+        let x = zenith_index(mu_s).clamp(0.0, (MS_ZENITHS - 1) as f64);
+        let k = (x as usize).min(MS_ZENITHS - 2);
+        let (low, high) = (&self.values[k], &self.values[k + 1]);
+        std::array::from_fn(|n| geometric(low[n], high[n], x - k as f64))
     }
+}
+
+/// Scattering orders computed one by one ([`MsTable::scattered`]) past
+/// the first.
+const ORDERS: usize = 4;
+
+/// The share of an order's light that the next one keeps, at most: past
+/// it the tail's sum ρ/(1 − ρ) is taken as this.
+const MAX_ORDER_RATIO: f64 = 0.9;
+
+/// The light scattered twice or more (Ψ, the sum of the orders' tables)
+/// and the sky's irradiance on the ground (E, the sum of its orders).
+///
+/// Orders 2 to [`ORDERS`] of Ψ (and 1 to [`ORDERS`] − 1 of E) are
+/// computed in turn; the rest are a geometric tail, each entry's last
+/// order times ρ/(1 − ρ) with ρ the ratio of its last two orders. This
+/// replaces Hillaire's isotropic factor F_ms = 1/(1 − f_ms), which takes
+/// the higher orders' light as isotropic and as made at the point itself:
+/// at the horizon and at twilight most of it arrives from far away
+/// (low, long paths; the still sunlit air high up), and F_ms leaves out
+/// a fifth of it there.
+fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
+    // J₂ from the once-scattered light; E₁ of the once-scattered sky.
+    let mut table = MsTable::scattered(optics, None);
+    let mut sky = SkyIrradiance::scattered(optics, None);
+    let (mut psi, mut irradiance) = (table.clone(), sky.clone());
+    let (mut last_table, mut last_sky) = (table.clone(), sky.clone());
+    for _ in 2..ORDERS {
+        // E_n from J_n, then J_{n+1} from L_n (J_n and the ground lit by
+        // E_{n−1}).
+        let next_sky = SkyIrradiance::scattered(optics, Some(&table));
+        let next_table = MsTable::scattered(optics, Some((&table, &sky)));
+        for (sum, v) in psi.values.iter_mut().zip(&next_table.values) {
+            for x in 0..2 {
+                for n in 0..NODES {
+                    sum[x][n] += v[x][n];
+                }
+            }
+        }
+        for (sum, v) in irradiance.values.iter_mut().zip(&next_sky.values) {
+            for n in 0..NODES {
+                sum[n] += v[n];
+            }
+        }
+        (last_table, last_sky) = (table, sky);
+        (table, sky) = (next_table, next_sky);
+    }
+    let tail = |last: f64, before: f64| {
+        if before > 0.0 && last > 0.0 {
+            let ratio = (last / before).min(MAX_ORDER_RATIO);
+            last * ratio / (1.0 - ratio)
+        } else {
+            0.0
+        }
+    };
+    for ((sum, last), before) in psi
+        .values
+        .iter_mut()
+        .zip(&table.values)
+        .zip(&last_table.values)
+    {
+        for x in 0..2 {
+            for n in 0..NODES {
+                sum[x][n] += tail(last[x][n], before[x][n]);
+            }
+        }
+    }
+    for ((sum, last), before) in irradiance
+        .values
+        .iter_mut()
+        .zip(&sky.values)
+        .zip(&last_sky.values)
+    {
+        for n in 0..NODES {
+            sum[n] += tail(last[n], before[n]);
+        }
+    }
+    (psi, irradiance)
 }
 
 /// The model's light field: the radiance arriving at any point of the
@@ -495,8 +652,7 @@ impl ModelField {
             phases: &phases,
             sun_direction,
         };
-        let ms = MsTable::new(&optics);
-        let sky = SkyIrradiance::new(&optics, &ms);
+        let (ms, sky) = scattering_orders(&optics);
         Self {
             groups,
             phases,
@@ -521,7 +677,7 @@ impl ModelField {
     /// left out.
     pub fn radiance(&self, medium: &Medium, x: DVec3, dir: DVec3) -> [f64; NODES] {
         let optics = self.optics(medium);
-        let g = optics.march(x, dir, VIEW_STEPS, Some(&self.ms), Some(&self.sky));
+        let g = optics.march(x, dir, VIEW_STEPS, Sources::all(&self.ms, &self.sky));
         let (pr, pa) = self.phases.at(dir.dot(self.sun_direction));
         std::array::from_fn(|n| pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n])
     }
@@ -566,7 +722,7 @@ impl SkyModel {
                 let elevation = rows.elevation(row as f64);
                 let azimuth = PI * column as f64 / (VIEW_COLUMNS - 1) as f64;
                 let dir = direction(&frame, elevation, azimuth);
-                let g = optics.march(observer_m, dir, VIEW_STEPS, Some(ms), Some(sky));
+                let g = optics.march(observer_m, dir, VIEW_STEPS, Sources::all(ms, sky));
                 [g.rayleigh, g.aerosol, g.isotropic]
             })
             .collect();
@@ -610,18 +766,52 @@ impl SkyModel {
         xyz
     }
 
-    /// The model seen through `camera`: linear Rec.709, Y in cd m⁻²
-    /// (black where a pixel has no ray).
+    /// The model seen through `camera`: linear Rec.709, Y in cd m⁻²,
+    /// each pixel the average over its area (the path tracer's box
+    /// filter; a sub-pixel position with no ray counts as black).
+    ///
+    /// Four stratified positions per pixel; where their luminances differ
+    /// by more than [`EDGE_CONTRAST`] of the largest (the horizon, the limb
+    /// seen from orbit, the edge of a fisheye's circle) the pixel is
+    /// averaged over an [`EDGE_SAMPLES`]² grid instead: there the light
+    /// drops by orders of magnitude within a pixel, and one value at its
+    /// centre is off by as much.
     pub fn image(&self, camera: &Camera, width: u32, height: u32) -> RgbImage {
         let pixels = (0..width as usize * height as usize)
             .into_par_iter()
             .map(|i| {
-                let (px, py) = (i % width as usize, i / width as usize);
-                camera
-                    .direction(px as f64 + 0.5, py as f64 + 0.5)
-                    .map_or([0.0; 3], |dir| {
-                        xyz_to_rec709(self.xyz(dir)).map(|v| v as f32)
-                    })
+                let (px, py) = ((i % width as usize) as f64, (i / width as usize) as f64);
+                let at = |fx: f64, fy: f64| {
+                    camera
+                        .direction(px + fx, py + fy)
+                        .map_or([0.0; 3], |dir| self.xyz(dir))
+                };
+                let mean = |grid: usize| {
+                    let mut sum = [0.0; 3];
+                    for k in 0..grid * grid {
+                        let step = 1.0 / grid as f64;
+                        let xyz = at(
+                            ((k % grid) as f64 + 0.5) * step,
+                            ((k / grid) as f64 + 0.5) * step,
+                        );
+                        for (s, v) in sum.iter_mut().zip(xyz) {
+                            *s += v;
+                        }
+                    }
+                    sum.map(|s| s / (grid * grid) as f64)
+                };
+                let four = [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]
+                    .map(|(fx, fy)| at(fx, fy));
+                let luminance = four.map(|xyz| xyz[1]);
+                let (low, high) = luminance
+                    .iter()
+                    .fold((f64::INFINITY, 0.0_f64), |(l, h), &y| (l.min(y), h.max(y)));
+                let xyz = if high - low > EDGE_CONTRAST * high {
+                    mean(EDGE_SAMPLES)
+                } else {
+                    std::array::from_fn(|c| four.iter().map(|v| v[c]).sum::<f64>() / 4.0)
+                };
+                xyz_to_rec709(xyz).map(|v| v as f32)
             })
             .collect();
         RgbImage {
@@ -631,6 +821,12 @@ impl SkyModel {
         }
     }
 }
+
+/// The spread of a pixel's four first luminances, relative to the
+/// largest, past which [`SkyModel::image`] averages it over a finer grid.
+const EDGE_CONTRAST: f64 = 0.1;
+/// Positions per axis of [`SkyModel::image`]'s finer grid.
+const EDGE_SAMPLES: usize = 8;
 
 /// Node `k`'s wavelength, nm.
 fn node_wavelength(k: usize) -> f64 {
@@ -777,18 +973,9 @@ fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
         .collect()
 }
 
-/// Bilinear interpolation in a row-major table of spectra, `columns` wide,
-/// at fractional (row, column), each clamped to its count.
-fn bilinear(
-    values: &[Spectrum],
-    columns: usize,
-    row: (f64, usize),
-    column: (f64, usize),
-) -> Spectrum {
-    bilinear_with(values, columns, row, column, |s| *s)
-}
-
-/// [`bilinear`] of the spectrum `pick` takes from each entry.
+/// Bilinear interpolation in a row-major table, `columns` wide, of the
+/// spectra `pick` takes from its entries, at fractional (row, column),
+/// each clamped to its count.
 fn bilinear_with<T>(
     values: &[T],
     columns: usize,
