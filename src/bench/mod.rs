@@ -156,20 +156,31 @@ fn first_frame_scene(name: &str, scene: &Scene) -> Scene {
 }
 
 /// Median time to the preview's first frame: scene set-up and the
-/// approximate sky model's image ([`crate::render::sky_model`]). Returns
-/// (total ms, set-up ms), medians of `repeats`.
-fn first_frame_ms(scene: &Scene, repeats: usize) -> Result<(f64, f64), String> {
-    let mut totals = Vec::with_capacity(repeats);
-    let mut setups = Vec::with_capacity(repeats);
-    for _ in 0..repeats {
+/// approximate sky model's image ([`crate::render::sky_model`]), its
+/// atmosphere's tables kept from the call before (as in the app after a
+/// change of sun, camera or size). Returns (total ms, set-up ms, ms with
+/// the tables made anew), the first two medians of `repeats`.
+fn first_frame_ms(scene: &Scene, repeats: usize) -> Result<(f64, f64, f64), String> {
+    let time = || -> Result<(f64, f64), String> {
         let start = Instant::now();
         let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
         let setup = start.elapsed();
         std::hint::black_box(renderer.sky_model_image());
-        totals.push(start.elapsed().as_secs_f64() * 1e3);
-        setups.push(setup.as_secs_f64() * 1e3);
+        Ok((
+            start.elapsed().as_secs_f64() * 1e3,
+            setup.as_secs_f64() * 1e3,
+        ))
+    };
+    crate::render::sky_model::forget_shared_tables();
+    let (cold, _) = time()?;
+    let mut totals = Vec::with_capacity(repeats);
+    let mut setups = Vec::with_capacity(repeats);
+    for _ in 0..repeats {
+        let (total, setup) = time()?;
+        totals.push(total);
+        setups.push(setup);
     }
-    Ok((median(&mut totals), median(&mut setups)))
+    Ok((median(&mut totals), median(&mut setups), cold))
 }
 
 fn median(values: &mut [f64]) -> f64 {
@@ -247,7 +258,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         eprintln!("bench: {name}: {budget_s} s on {threads} thread(s)");
         let run = pool.install(|| measure_noise(scene, budget_s, seed))?;
         let ff_scene = first_frame_scene(name, scene);
-        let (first_ms, setup_ms) = pool.install(|| first_frame_ms(&ff_scene, repeats))?;
+        let (first_ms, setup_ms, cold_ms) = pool.install(|| first_frame_ms(&ff_scene, repeats))?;
         let target = noise_target(name);
         let time_to_target = target.map(|t| time_to_noise(run.noise, run.seconds, t));
         results.push(SceneResult {
@@ -289,6 +300,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             first_frame_width: ff_scene.render.width,
             first_frame_height: ff_scene.render.height,
             first_frame_setup_ms: setup_ms,
+            first_frame_cold_ms: cold_ms,
             noise_target: target,
             time_to_target_s: time_to_target,
             target_met: time_to_target
@@ -364,7 +376,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         format!(
             "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
-        "first_frame_ms: median of Renderer::new + the sky model's image at the app's default preview size (320x160): what the app shows first".into(),
+        "first_frame_ms: median of Renderer::new + the sky model's image at the app's default preview size (320x160), the model's tables for the atmosphere kept from before: what the app shows first after a change of sun, camera or size; details.first_frame_cold_ms: the same with the tables made anew (the app's start, a change of atmosphere)".into(),
         "CPU share: CPU time of this process / (wall time x threads) while rendering; below 100 % means other processes took cores (throughput and noise at budget then understate the renderer)".into(),
     ];
     Ok(Report {

@@ -155,9 +155,13 @@ impl Renderer {
     }
 
     /// The approximate sky of [`super::sky_model`]: the preview's first
-    /// frame (tens of milliseconds; an approximation, never the reference).
+    /// frame (an approximation, never the reference). Its atmosphere's
+    /// tables are kept between renderers of the same atmosphere
+    /// ([`super::sky_model::ModelTables::shared`]): with them made, tens
+    /// of milliseconds.
     pub fn sky_model_image(&self) -> crate::output::RgbImage {
-        let model = super::sky_model::SkyModel::new(
+        let model = super::sky_model::SkyModel::from_tables(
+            super::sky_model::ModelTables::shared(&self.medium, &self.lane_table),
             &self.medium,
             &self.lane_table,
             self.cmf,

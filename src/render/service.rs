@@ -82,9 +82,9 @@ pub struct Frame {
 }
 
 /// The sky model's typical RMS error over a whole image, relative to its
-/// mean luminance: 13–29 % over the bench's scenes (`BENCHMARKS.md`, "The
+/// mean luminance: 3–12 % over the bench's scenes (`BENCHMARKS.md`, "The
 /// preview's first frame").
-pub const MODEL_ERROR: f64 = 0.2;
+pub const MODEL_ERROR: f64 = 0.1;
 
 /// See [`model_weight`]: a pixel of the passes this many times the model's
 /// is the sun's disc (10⁵–10⁶ times the sky) or a rare bright sample, not

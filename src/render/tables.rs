@@ -18,7 +18,7 @@ use super::guide::SkyGuide;
 use super::integrator::Integrator;
 use super::lanes::LaneTable;
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
-use super::sky_model::{ModelField, MODEL_NODES};
+use super::sky_model::{ModelField, ModelTables, MODEL_NODES};
 use super::sunlight::CameraDensities;
 use crate::plan::{ControlSource, TechniquePlan};
 use crate::rng::Rng;
@@ -79,7 +79,10 @@ impl Tables {
                     sun_direction,
                 }),
                 ControlSource::Model => Box::new(ModelRadiance {
-                    field: ModelField::new(medium, lane_table, sun_direction),
+                    field: ModelField::from_tables(
+                        ModelTables::shared(medium, lane_table),
+                        sun_direction,
+                    ),
                 }),
             };
             RadianceTable::new(

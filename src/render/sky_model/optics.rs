@@ -1,0 +1,441 @@
+//! The model's optics: the atmosphere at the model's wavelengths, its
+//! phase functions, the tables of light scattered twice or more as they
+//! are looked up, and the march along a ray that gathers the light.
+
+use std::f64::consts::PI;
+
+use glam::DVec3;
+
+use crate::physics::rayleigh;
+use crate::render::medium::{Medium, SpectralLanes, LANES};
+
+/// Wavelength groups of [`LANES`] wavelengths each.
+pub(super) const GROUPS: usize = 4;
+/// Wavelengths at which the model is computed.
+pub(super) const NODES: usize = GROUPS * LANES;
+/// The nodes' range, nm (the colour-matching functions').
+pub(super) const RANGE_NM: (f64, f64) = (360.0, 830.0);
+
+/// A quantity at the model's wavelengths.
+pub(super) type Spectrum = [f64; NODES];
+
+/// Steps of a march inside the multiple-scattering and irradiance tables.
+pub(super) const TABLE_STEPS: usize = 12;
+/// Steps of a march through the table of an order past the first.
+pub(super) const TABLE_STEPS_HIGHER: usize = 8;
+/// Directions over which Ψ's integrals are summed.
+pub(super) const MS_DIRECTIONS: usize = 128;
+/// Directions over which the orders past the second are summed (their
+/// light is smoother than the once-scattered light, whose twilight arch
+/// and horizon band fewer directions alias).
+pub(super) const MS_DIRECTIONS_HIGHER: usize = 32;
+/// Altitudes and solar-zenith cosines of the multiple-scattering table.
+pub(super) const MS_ALTITUDES: usize = 8;
+/// See [`MS_ALTITUDES`].
+pub(super) const MS_ZENITHS: usize = 33;
+
+/// The medium seen through one group of lanes per node group.
+pub(super) struct Optics<'a> {
+    pub(super) medium: &'a Medium,
+    pub(super) groups: &'a [SpectralLanes],
+    pub(super) phases: &'a Phases,
+    pub(super) sun_direction: DVec3,
+}
+
+/// What a march gathers along a ray, per wavelength.
+#[derive(Default)]
+pub(super) struct Gathered {
+    /// ∫ T σ_R T_sun dt.
+    pub(super) rayleigh: Spectrum,
+    /// ∫ T σ_A T_sun dt.
+    pub(super) aerosol: Spectrum,
+    /// ∫ T σ_s Ψ dt plus the ground's reflected light.
+    pub(super) isotropic: Spectrum,
+    /// ∫ T σ_s dt.
+    pub(super) scattering: Spectrum,
+}
+
+impl Optics<'_> {
+    /// Transmittance toward the sun from `x` at each wavelength (0 in the
+    /// planet's shadow).
+    pub(super) fn sun_transmittance(&self, x: DVec3) -> Spectrum {
+        let mut t = [0.0; NODES];
+        if let Some(columns) = self.medium.sun_columns().at(x, self.sun_direction) {
+            for (g, lanes) in self.groups.iter().enumerate() {
+                for j in 0..LANES {
+                    t[g * LANES + j] =
+                        (-crate::render::sunlight::sun_optical_depth(lanes, j, columns)).exp();
+                }
+            }
+        }
+        t
+    }
+
+    /// Marches from `origin` along `dir` in `steps` (lengths growing as
+    /// the square, short where the ray starts), gathering the sunlight
+    /// scattered toward `origin`, the multiple scattering and the ground's
+    /// light where the ray ends on it, as `sources` says.
+    pub(super) fn march(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        steps: usize,
+        sources: Sources<'_>,
+    ) -> Gathered {
+        let mut out = Gathered::default();
+        let Some(span) = self.medium.span(origin, dir) else {
+            return out;
+        };
+        let length = span.t_exit - span.t_enter;
+        let nu = dir.dot(self.sun_direction);
+        let mut transmittance = [1.0; NODES];
+        let mut t0 = span.t_enter;
+        for s in 0..steps {
+            let t1 = span.t_enter + length * ((s + 1) as f64 / steps as f64).powi(2);
+            let dt = t1 - t0;
+            let x = origin + dir * (0.5 * (t0 + t1));
+            let r = x.length();
+            let sun = if sources.sunlight {
+                self.sun_transmittance(x)
+            } else {
+                [0.0; NODES]
+            };
+            let psi = sources
+                .ms
+                .map(|m| m.at(r, x.dot(self.sun_direction) / r, nu, x.dot(dir) / r));
+            for (g, lanes) in self.groups.iter().enumerate() {
+                let c = self.medium.coefficients(r, lanes);
+                for j in 0..LANES {
+                    let k = g * LANES + j;
+                    let extinction = c.extinction(j);
+                    // ∫ over the step of T(t) with σ_t constant: T₀ (1 − e^{−σΔt})/σ.
+                    let step_t = (-extinction * dt).exp();
+                    let weight = if extinction > 0.0 {
+                        transmittance[k] * (1.0 - step_t) / extinction
+                    } else {
+                        transmittance[k] * dt
+                    };
+                    out.rayleigh[k] += weight * c.rayleigh[j] * sun[k];
+                    out.aerosol[k] += weight * c.aerosol_scattering[j] * sun[k];
+                    out.scattering[k] += weight * c.scattering(j);
+                    if let Some([psi_r, psi_a]) = &psi {
+                        out.isotropic[k] += weight
+                            * (c.rayleigh[j] * psi_r[k] + c.aerosol_scattering[j] * psi_a[k]);
+                    }
+                    transmittance[k] *= step_t;
+                }
+            }
+            t0 = t1;
+        }
+        if span.hits_ground {
+            let g = origin + dir * span.t_exit;
+            let (mu_sun, sun) = if sources.ground_sun {
+                let mu = (g.dot(self.sun_direction) / g.length()).max(0.0);
+                (mu, self.sun_transmittance(g))
+            } else {
+                (0.0, [0.0; NODES])
+            };
+            let irradiance = sources
+                .ground_sky
+                .map(|s| s.at(g.dot(self.sun_direction) / g.length()));
+            for (group, lanes) in self.groups.iter().enumerate() {
+                for j in 0..LANES {
+                    let k = group * LANES + j;
+                    let e = mu_sun * sun[k] + irradiance.map_or(0.0, |e| e[k]);
+                    out.isotropic[k] += transmittance[k] * lanes.ground_albedo[j] / PI * e;
+                }
+            }
+        }
+        out
+    }
+
+    /// These optics with the sun at solar-zenith cosine `mu_s` above a
+    /// point on the z axis (in the x–z plane), and that sun's direction.
+    pub(super) fn with_sun_at(&self, mu_s: f64) -> (DVec3, Self) {
+        let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
+        let optics = Optics {
+            sun_direction: sun,
+            ..*self
+        };
+        (sun, optics)
+    }
+
+    /// The phase functions (P_R, P_A) at each wavelength at cosine `mu`
+    /// between the ray and the sun ([`Phases`]).
+    pub(super) fn phases(&self, mu: f64) -> (Spectrum, Spectrum) {
+        self.phases.at(mu)
+    }
+}
+
+/// Samples of [`Phases`].
+pub(super) const PHASE_SAMPLES: usize = 2048;
+
+/// The Rayleigh and aerosol phase functions at each wavelength, tabulated
+/// at μ = 1 − 2u², u uniform (0.11° apart at the forward peak), linear in
+/// between: the model evaluates them about a million times, and a
+/// tabulated phase function over wavelength costs two searches each.
+pub(super) struct Phases {
+    pub(super) values: Vec<(Spectrum, Spectrum)>,
+}
+
+impl Phases {
+    pub(super) fn new(medium: &Medium, groups: &[SpectralLanes]) -> Self {
+        let values = (0..PHASE_SAMPLES)
+            .map(|i| {
+                let u = i as f64 / (PHASE_SAMPLES - 1) as f64;
+                let mu = 1.0 - 2.0 * u * u;
+                let (mut rayleigh_phase, mut aerosol_phase) = ([0.0; NODES], [0.0; NODES]);
+                for (g, lanes) in groups.iter().enumerate() {
+                    let aerosol = medium.aerosol_phases(mu, lanes);
+                    for j in 0..LANES {
+                        rayleigh_phase[g * LANES + j] =
+                            rayleigh::phase(mu, lanes.rayleigh_gamma[j]);
+                        aerosol_phase[g * LANES + j] = aerosol[j];
+                    }
+                }
+                (rayleigh_phase, aerosol_phase)
+            })
+            .collect();
+        Self { values }
+    }
+
+    pub(super) fn at(&self, mu: f64) -> (Spectrum, Spectrum) {
+        let x = (0.5 * (1.0 - mu.clamp(-1.0, 1.0))).sqrt() * (PHASE_SAMPLES - 1) as f64;
+        let i = (x as usize).min(PHASE_SAMPLES - 2);
+        let f = x - i as f64;
+        let ((ra, aa), (rb, ab)) = (&self.values[i], &self.values[i + 1]);
+        (
+            std::array::from_fn(|n| ra[n] + f * (rb[n] - ra[n])),
+            std::array::from_fn(|n| aa[n] + f * (ab[n] - aa[n])),
+        )
+    }
+}
+
+/// The light a march gathers.
+#[derive(Clone, Copy)]
+pub(super) struct Sources<'a> {
+    /// Sunlight scattered once along the ray.
+    pub(super) sunlight: bool,
+    /// Light scattered twice or more along the ray, per unit scattering
+    /// coefficient.
+    pub(super) ms: Option<&'a MsTable>,
+    /// The sun on the ground where the ray ends on it.
+    pub(super) ground_sun: bool,
+    /// The sky's irradiance on the ground where the ray ends on it.
+    pub(super) ground_sky: Option<&'a SkyIrradiance>,
+}
+
+impl<'a> Sources<'a> {
+    /// Everything: what an observer sees.
+    pub(super) fn all(ms: &'a MsTable, sky: &'a SkyIrradiance) -> Self {
+        Self {
+            sunlight: true,
+            ms: Some(ms),
+            ground_sun: true,
+            ground_sky: Some(sky),
+        }
+    }
+}
+
+/// Light scattered twice or more toward a point's viewer, per unit
+/// Rayleigh and aerosol scattering coefficient, by the point's altitude,
+/// solar zenith and the cosine ν between the view and the sun. One
+/// order's table is J_{n+1,X}(ν) = Σ_ω L_n(ω) P_X(ω·v) Δω for the
+/// phase functions P_X, L_n the light of order n arriving from ω (the
+/// air's and the ground's), v at ν from the sun (averaged over two
+/// azimuths about it): Bruneton & Neyret's (2008) iteration over
+/// scattering orders, with the view's zenith folded into ν. The model's
+/// Ψ is the sum over orders ([`scattering_orders`]).
+#[derive(Clone)]
+pub(super) struct MsTable {
+    pub(super) planet_radius_m: f64,
+    pub(super) top_m: f64,
+    /// Per (altitude, zenith, ν): (J_R, J_A).
+    pub(super) values: Vec<[Spectrum; 2]>,
+    /// Per (altitude, zenith, view zenith): the sums over azimuths of J at
+    /// views at that zenith and of the ν table at the same views' angles
+    /// from the sun, for each of R and A.
+    pub(super) zenith_sums: Vec<[[Spectrum; 2]; 2]>,
+    /// Per (altitude, zenith, view zenith): the ratio of the two sums,
+    /// by which the ν table's J is scaled at that view zenith.
+    pub(super) zenith_factors: Vec<[Spectrum; 2]>,
+}
+
+/// View-zenith cosines of [`MsTable`]'s zenith factors: μ_v = u|u|,
+/// dense about the horizon.
+pub(super) const MS_VIEW_ZENITHS: usize = 13;
+/// Azimuths over which a zenith factor is averaged.
+pub(super) const MS_VIEW_AZIMUTHS: usize = 6;
+
+pub(super) fn view_zenith_cosine_of(i: usize) -> f64 {
+    let u = 2.0 * i as f64 / (MS_VIEW_ZENITHS - 1) as f64 - 1.0;
+    u * u.abs()
+}
+
+pub(super) fn view_zenith_index(mu_v: f64) -> f64 {
+    let mu = mu_v.clamp(-1.0, 1.0);
+    0.5 * (mu.signum() * mu.abs().sqrt() + 1.0) * (MS_VIEW_ZENITHS - 1) as f64
+}
+
+/// View–sun cosines of [`MsTable`]: ν = 1 − 2u², dense about the sun.
+pub(super) const MS_VIEW_ANGLES: usize = 16;
+
+pub(super) fn view_cosine_of(i: usize) -> f64 {
+    let u = i as f64 / (MS_VIEW_ANGLES - 1) as f64;
+    1.0 - 2.0 * u * u
+}
+
+pub(super) fn view_cosine_index(nu: f64) -> f64 {
+    (0.5 * (1.0 - nu.clamp(-1.0, 1.0))).sqrt() * (MS_VIEW_ANGLES - 1) as f64
+}
+
+impl MsTable {
+    /// (J_R, J_A) at distance `r` from the centre, solar-zenith cosine
+    /// `mu_s`, view–sun cosine `nu` and view-zenith cosine `mu_v`.
+    pub(super) fn at(&self, r: f64, mu_s: f64, nu: f64, mu_v: f64) -> [Spectrum; 2] {
+        let split = |x: f64, n: usize| {
+            let x = x.clamp(0.0, (n - 1) as f64);
+            let i = (x as usize).min(n - 2);
+            (i, x - i as f64)
+        };
+        let (i, fi) = split(
+            altitude_index(r - self.planet_radius_m, MS_ALTITUDES, self.top_m),
+            MS_ALTITUDES,
+        );
+        let (k, fk) = split(zenith_index(mu_s), MS_ZENITHS);
+        let (a, fa) = split(view_cosine_index(nu), MS_VIEW_ANGLES);
+        let (z, fz) = split(view_zenith_index(mu_v), MS_VIEW_ZENITHS);
+        // The view's azimuth from the sun's, φ ∈ [0, π], from
+        // ν = μ_s μ_v + √(1 − μ_s²) √(1 − μ_v²) cos φ.
+        let across = ((1.0 - mu_s * mu_s) * (1.0 - mu_v * mu_v)).max(0.0).sqrt();
+        let cos_phi = if across > 1e-9 {
+            ((nu - mu_s * mu_v) / across).clamp(-1.0, 1.0)
+        } else {
+            1.0
+        };
+        let (b, fb) = split(
+            cos_phi.acos() / PI * MS_VIEW_AZIMUTHS as f64 - 0.5,
+            MS_VIEW_AZIMUTHS,
+        );
+        let mut factor = [[0.0; NODES]; 2];
+        for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
+            for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
+                for (dz, wz) in [(0, 1.0 - fz), (1, fz)] {
+                    for (db, wb) in [(0, 1.0 - fb), (1, fb)] {
+                        let w = wi * wk * wz * wb;
+                        if w == 0.0 {
+                            continue;
+                        }
+                        let cell = (((i + di) * MS_ZENITHS + k + dk) * MS_VIEW_ZENITHS + z + dz)
+                            * MS_VIEW_AZIMUTHS
+                            + b
+                            + db;
+                        let v = &self.zenith_factors[cell];
+                        for n in 0..NODES {
+                            factor[0][n] += w * v[0][n];
+                            factor[1][n] += w * v[1][n];
+                        }
+                    }
+                }
+            }
+        }
+        // Linear in altitude and ν within each of the two solar-zenith
+        // slices, then geometric between them.
+        let slice = |k: usize| {
+            let mut out = [[0.0; NODES]; 2];
+            for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
+                for (da, wa) in [(0, 1.0 - fa), (1, fa)] {
+                    let w = wi * wa;
+                    if w == 0.0 {
+                        continue;
+                    }
+                    let cell = ((i + di) * MS_ZENITHS + k) * MS_VIEW_ANGLES + a + da;
+                    let v = &self.values[cell];
+                    for n in 0..NODES {
+                        out[0][n] += w * v[0][n];
+                        out[1][n] += w * v[1][n];
+                    }
+                }
+            }
+            out
+        };
+        let (low, high) = (slice(k), slice(k + 1));
+        [0, 1].map(|x| std::array::from_fn(|n| geometric(low[x][n], high[x][n], fk) * factor[x][n]))
+    }
+}
+
+/// Interpolation between `a` and `b` at fraction `f`: geometric where
+/// both are positive and differ by more than a quarter, else linear. The
+/// light past the first scattering falls off about exponentially with the
+/// sun's depression at twilight (the shadow rising through the air), and
+/// with table nodes a degree or two apart the linear mean there is up to
+/// 30 % too bright; where neighbours differ by less than a quarter the
+/// two means differ by less than 0.7 % (and the power is not paid for).
+pub(super) fn geometric(a: f64, b: f64, f: f64) -> f64 {
+    let linear = a + f * (b - a);
+    if a > 0.0 && b > 0.0 && (b > 1.25 * a || a > 1.25 * b) {
+        a * (b / a).powf(f)
+    } else {
+        linear
+    }
+}
+
+/// The sky's irradiance on the ground by solar-zenith cosine (the sun's
+/// own left out), of one scattering order or the sum of several.
+#[derive(Clone)]
+pub(super) struct SkyIrradiance {
+    pub(super) values: Vec<Spectrum>,
+}
+
+impl SkyIrradiance {
+    pub(super) fn at(&self, mu_s: f64) -> Spectrum {
+        let x = zenith_index(mu_s).clamp(0.0, (MS_ZENITHS - 1) as f64);
+        let k = (x as usize).min(MS_ZENITHS - 2);
+        let (low, high) = (&self.values[k], &self.values[k + 1]);
+        std::array::from_fn(|n| geometric(low[n], high[n], x - k as f64))
+    }
+}
+
+/// Solar-zenith cosine of fractional node `k` of [`MS_ZENITHS`]: square
+/// spacing about the horizon (μ = ±u², u from −1 to 1), where the light
+/// changes fastest with the sun's height (twilight, sunset).
+pub(super) fn zenith_cosine_of(k: f64) -> f64 {
+    let u = 2.0 * k / (MS_ZENITHS - 1) as f64 - 1.0;
+    u * u.abs()
+}
+
+/// [`zenith_cosine_of`]'s inverse.
+pub(super) fn zenith_index(mu_s: f64) -> f64 {
+    let mu = mu_s.clamp(-1.0, 1.0);
+    let u = mu.signum() * mu.abs().sqrt();
+    0.5 * (u + 1.0) * (MS_ZENITHS - 1) as f64
+}
+
+/// Altitude of row `i` of `n` over an atmosphere `top_m` high: square
+/// spacing, dense low down.
+pub(super) fn altitude_of(i: usize, n: usize, top_m: f64) -> f64 {
+    (top_m * (i as f64 / (n - 1) as f64).powi(2)).clamp(1.0, top_m - 1.0)
+}
+
+/// Fractional row of `altitude_m` ([`altitude_of`]'s inverse).
+pub(super) fn altitude_index(altitude_m: f64, n: usize, top_m: f64) -> f64 {
+    (altitude_m / top_m).clamp(0.0, 1.0).sqrt() * (n - 1) as f64
+}
+
+/// Node `k`'s wavelength, nm.
+pub(super) fn node_wavelength(k: usize) -> f64 {
+    RANGE_NM.0 + (RANGE_NM.1 - RANGE_NM.0) * k as f64 / (NODES - 1) as f64
+}
+
+/// `n` directions spread evenly over the sphere (a Fibonacci lattice).
+pub(super) fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
+    let golden = PI * (3.0 - 5.0_f64.sqrt());
+    (0..n)
+        .map(|i| {
+            let z = 1.0 - 2.0 * (i as f64 + 0.5) / n as f64;
+            let r = (1.0 - z * z).max(0.0).sqrt();
+            let phi = golden * i as f64;
+            DVec3::new(r * phi.cos(), r * phi.sin(), z)
+        })
+        .collect()
+}

@@ -1,0 +1,539 @@
+//! The sky model's tables of the light scattered twice or more: one
+//! scattering order at a time from the one before (Bruneton & Neyret
+//! 2008), the sky's irradiance on the ground by order, and the tables of
+//! one atmosphere kept for the next renderer of the same optics.
+
+use std::f64::consts::PI;
+use std::sync::{Arc, Mutex};
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::optics::{
+    altitude_of, fibonacci_sphere, node_wavelength, view_cosine_index, view_cosine_of,
+    view_zenith_cosine_of, zenith_cosine_of, MsTable, Optics, Phases, SkyIrradiance, Sources,
+    Spectrum, GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_HIGHER, MS_VIEW_ANGLES,
+    MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES, TABLE_STEPS, TABLE_STEPS_HIGHER,
+};
+use crate::render::lanes::LaneTable;
+use crate::render::medium::{Lanes, Medium, SpectralLanes, LANES};
+
+/// One solar zenith's entries of an [`MsTable`]: the ν table's and the
+/// view sums'.
+type ZenithEntries = (Vec<[Spectrum; 2]>, Vec<[[Spectrum; 2]; 2]>);
+
+impl MsTable {
+    /// The light scattered once more than `previous`'s: from the sunlight
+    /// scattered once (and the sunlit ground) without it, else from the
+    /// light of the previous order (its table J_n, and the ground lit by
+    /// the sky of the order before, E_{n−1}).
+    fn scattered(optics: &Optics<'_>, previous: Option<(&MsTable, &SkyIrradiance)>) -> Self {
+        let medium = optics.medium;
+        let (planet_radius_m, top_m) = (
+            medium.planet_radius_m,
+            medium.top_radius_m - medium.planet_radius_m,
+        );
+        let count = if previous.is_some() {
+            MS_DIRECTIONS_HIGHER
+        } else {
+            MS_DIRECTIONS
+        };
+        let directions = fibonacci_sphere(count);
+        let weight = 4.0 * PI / count as f64;
+        // Per solar zenith (the sun's direction, and so every phase
+        // function value, is the same at each altitude): the altitudes' rows.
+        let per_zenith: Vec<ZenithEntries> = (0..MS_ZENITHS)
+            .into_par_iter()
+            .map(|k| {
+                let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
+                // Views at ν from the sun, in the plane of the sun and the
+                // zenith and across it, each weighted ½.
+                let (toward, across) = (DVec3::new(-sun.z, 0.0, sun.x), DVec3::Y);
+                let views: Vec<DVec3> = (0..MS_VIEW_ANGLES)
+                    .flat_map(|a| {
+                        let nu = view_cosine_of(a);
+                        let sin = (1.0 - nu * nu).max(0.0).sqrt();
+                        [sun * nu + toward * sin, sun * nu + across * sin]
+                    })
+                    .collect();
+                let to_sun: Vec<_> = directions
+                    .iter()
+                    .map(|d| optics.phases(d.dot(sun)))
+                    .collect();
+                let to_view: Vec<Vec<_>> = views
+                    .iter()
+                    .map(|v| {
+                        directions
+                            .iter()
+                            .map(|d| optics.phases(d.dot(*v)))
+                            .collect()
+                    })
+                    .collect();
+                // Views at each tabulated zenith, at azimuths from the sun
+                // spread over a half turn (the other half mirrors them),
+                // and their places in the ν table.
+                let zenith_views: Vec<(DVec3, f64)> = (0..MS_VIEW_ZENITHS)
+                    .flat_map(|z| {
+                        let mu = view_zenith_cosine_of(z);
+                        let sin = (1.0 - mu * mu).max(0.0).sqrt();
+                        (0..MS_VIEW_AZIMUTHS).map(move |b| {
+                            let phi = PI * (b as f64 + 0.5) / MS_VIEW_AZIMUTHS as f64;
+                            let v = DVec3::new(sin * phi.cos(), sin * phi.sin(), mu);
+                            (v, view_cosine_index(v.dot(sun)))
+                        })
+                    })
+                    .collect();
+                let to_zenith_view: Vec<Vec<_>> = zenith_views
+                    .iter()
+                    .map(|(v, _)| {
+                        directions
+                            .iter()
+                            .map(|d| optics.phases(d.dot(*v)))
+                            .collect()
+                    })
+                    .collect();
+                let rows: Vec<ZenithEntries> = (0..MS_ALTITUDES)
+                    .map(|i| {
+                        let r = planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
+                        let origin = DVec3::new(0.0, 0.0, r);
+                        let arriving: Vec<Spectrum> = directions
+                            .iter()
+                            .zip(&to_sun)
+                            .map(|(&dir, (pr, pa))| match previous {
+                                None => {
+                                    let once = Sources {
+                                        sunlight: true,
+                                        ms: None,
+                                        ground_sun: true,
+                                        ground_sky: None,
+                                    };
+                                    let g = cell_optics.march(origin, dir, TABLE_STEPS, once);
+                                    std::array::from_fn(|n| {
+                                        pr[n] * g.rayleigh[n]
+                                            + pa[n] * g.aerosol[n]
+                                            + g.isotropic[n]
+                                    })
+                                }
+                                Some((table, sky)) => {
+                                    let order = Sources {
+                                        sunlight: false,
+                                        ms: Some(table),
+                                        ground_sun: false,
+                                        ground_sky: Some(sky),
+                                    };
+                                    cell_optics
+                                        .march(origin, dir, TABLE_STEPS_HIGHER, order)
+                                        .isotropic
+                                }
+                            })
+                            .collect();
+                        let row: Vec<[Spectrum; 2]> = to_view
+                            .chunks(2)
+                            .map(|pair| {
+                                let mut out = [[0.0; NODES]; 2];
+                                for phases in pair {
+                                    for (l, (pr, pa)) in arriving.iter().zip(phases) {
+                                        for n in 0..NODES {
+                                            out[0][n] += l[n] * pr[n];
+                                            out[1][n] += l[n] * pa[n];
+                                        }
+                                    }
+                                }
+                                out.map(|o| std::array::from_fn(|n| o[n] * 0.5 * weight))
+                            })
+                            .collect::<Vec<_>>();
+                        let factors = zenith_views
+                            .chunks(1)
+                            .zip(to_zenith_view.chunks(1))
+                            .map(|(views, phases)| {
+                                // Σ over azimuths of J at the views and of
+                                // the ν table at their angles to the sun.
+                                let (mut direct, mut table) =
+                                    ([[0.0; NODES]; 2], [[0.0; NODES]; 2]);
+                                for ((_, index), phases) in views.iter().zip(phases) {
+                                    for (l, (pr, pa)) in arriving.iter().zip(phases) {
+                                        for n in 0..NODES {
+                                            direct[0][n] += l[n] * pr[n] * weight;
+                                            direct[1][n] += l[n] * pa[n] * weight;
+                                        }
+                                    }
+                                    let a = (*index as usize).min(MS_VIEW_ANGLES - 2);
+                                    let f = index - a as f64;
+                                    for x in 0..2 {
+                                        for n in 0..NODES {
+                                            table[x][n] += row[a][x][n]
+                                                + f * (row[a + 1][x][n] - row[a][x][n]);
+                                        }
+                                    }
+                                }
+                                [direct, table]
+                            })
+                            .collect::<Vec<[[Spectrum; 2]; 2]>>();
+                        (row, factors)
+                    })
+                    .collect();
+                let (mut values, mut factors) = (Vec::new(), Vec::new());
+                for (row, f) in rows {
+                    values.extend(row);
+                    factors.extend(f);
+                }
+                (values, factors)
+            })
+            .collect();
+        // Reordered to (altitude, zenith, ν) and (altitude, zenith, μ_v).
+        let cell = |index: usize, rows: usize| {
+            let (cell, a) = (index / rows, index % rows);
+            let (i, k) = (cell / MS_ZENITHS, cell % MS_ZENITHS);
+            (k, i * rows + a)
+        };
+        let values = (0..MS_ALTITUDES * MS_ZENITHS * MS_VIEW_ANGLES)
+            .map(|index| {
+                let (k, at) = cell(index, MS_VIEW_ANGLES);
+                per_zenith[k].0[at]
+            })
+            .collect();
+        let zenith_sums = (0..MS_ALTITUDES * MS_ZENITHS * MS_VIEW_ZENITHS * MS_VIEW_AZIMUTHS)
+            .map(|index| {
+                let (k, at) = cell(index, MS_VIEW_ZENITHS * MS_VIEW_AZIMUTHS);
+                per_zenith[k].1[at]
+            })
+            .collect();
+        let mut table = Self {
+            planet_radius_m,
+            top_m,
+            values,
+            zenith_sums,
+            zenith_factors: Vec::new(),
+        };
+        table.update_factors();
+        table
+    }
+
+    /// The zenith factors from the zenith sums.
+    fn update_factors(&mut self) {
+        self.zenith_factors = self
+            .zenith_sums
+            .iter()
+            .map(|[direct, table]| {
+                std::array::from_fn(|x| {
+                    std::array::from_fn(|n| {
+                        if table[x][n] > 0.0 {
+                            direct[x][n] / table[x][n]
+                        } else {
+                            1.0
+                        }
+                    })
+                })
+            })
+            .collect();
+    }
+}
+
+impl SkyIrradiance {
+    /// The irradiance of the sunlight scattered once (without `ms`) or of
+    /// the light that `ms` scatters toward the ground.
+    fn scattered(optics: &Optics<'_>, ms: Option<&MsTable>) -> Self {
+        let medium = optics.medium;
+        // Half of a sphere's directions look up.
+        let count = 2 * if ms.is_some() {
+            MS_DIRECTIONS_HIGHER
+        } else {
+            MS_DIRECTIONS
+        };
+        let up: Vec<DVec3> = fibonacci_sphere(count)
+            .into_iter()
+            .filter(|d| d.z > 0.0)
+            .collect();
+        let weight = 4.0 * PI / count as f64;
+        // Looking up from the ground, no view ray ends on it.
+        let sources = Sources {
+            sunlight: ms.is_none(),
+            ms,
+            ground_sun: false,
+            ground_sky: None,
+        };
+        let values = (0..MS_ZENITHS)
+            .into_par_iter()
+            .map(|k| {
+                let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
+                let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1.0);
+                let mut e = [0.0; NODES];
+                for &dir in &up {
+                    let steps = if ms.is_some() {
+                        TABLE_STEPS_HIGHER
+                    } else {
+                        TABLE_STEPS
+                    };
+                    let g = cell_optics.march(origin, dir, steps, sources);
+                    let radiance: Spectrum = if ms.is_some() {
+                        g.isotropic
+                    } else {
+                        let (pr, pa) = cell_optics.phases(dir.dot(sun));
+                        std::array::from_fn(|n| pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n])
+                    };
+                    for n in 0..NODES {
+                        e[n] += radiance[n] * dir.z * weight;
+                    }
+                }
+                e
+            })
+            .collect();
+        Self { values }
+    }
+}
+
+/// Scattering orders computed one by one ([`MsTable::scattered`]) past
+/// the first.
+const ORDERS: usize = 4;
+
+/// The share of an order's light that the next one keeps, at most: past
+/// it the tail's sum ρ/(1 − ρ) is taken as this.
+const MAX_ORDER_RATIO: f64 = 0.9;
+
+/// The light scattered twice or more (Ψ, the sum of the orders' tables)
+/// and the sky's irradiance on the ground (E, the sum of its orders).
+///
+/// Orders 2 to [`ORDERS`] of Ψ (and 1 to [`ORDERS`] − 1 of E) are
+/// computed in turn; the rest are a geometric tail, each entry's last
+/// order times ρ/(1 − ρ) with ρ the ratio of its last two orders. This
+/// replaces Hillaire's isotropic factor F_ms = 1/(1 − f_ms), which takes
+/// the higher orders' light as isotropic and as made at the point itself:
+/// at the horizon and at twilight most of it arrives from far away
+/// (low, long paths; the still sunlit air high up), and F_ms leaves out
+/// a fifth of it there.
+fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
+    // J₂ from the once-scattered light; E₁ of the once-scattered sky.
+    let mut table = MsTable::scattered(optics, None);
+    let mut sky = SkyIrradiance::scattered(optics, None);
+    let (mut psi, mut irradiance) = (table.clone(), sky.clone());
+    let (mut last_table, mut last_sky) = (table.clone(), sky.clone());
+    for _ in 2..ORDERS {
+        // E_n from J_n, then J_{n+1} from L_n (J_n and the ground lit by
+        // E_{n−1}).
+        let next_sky = SkyIrradiance::scattered(optics, Some(&table));
+        let next_table = MsTable::scattered(optics, Some((&table, &sky)));
+        for (sum, v) in psi.values.iter_mut().zip(&next_table.values) {
+            for x in 0..2 {
+                for n in 0..NODES {
+                    sum[x][n] += v[x][n];
+                }
+            }
+        }
+        for (sum, v) in psi.zenith_sums.iter_mut().zip(&next_table.zenith_sums) {
+            for (s, v) in sum.iter_mut().flatten().zip(v.iter().flatten()) {
+                for n in 0..NODES {
+                    s[n] += v[n];
+                }
+            }
+        }
+        for (sum, v) in irradiance.values.iter_mut().zip(&next_sky.values) {
+            for n in 0..NODES {
+                sum[n] += v[n];
+            }
+        }
+        (last_table, last_sky) = (table, sky);
+        (table, sky) = (next_table, next_sky);
+    }
+    let tail = |last: f64, before: f64| {
+        if before > 0.0 && last > 0.0 {
+            let ratio = (last / before).min(MAX_ORDER_RATIO);
+            last * ratio / (1.0 - ratio)
+        } else {
+            0.0
+        }
+    };
+    for ((sum, last), before) in psi
+        .values
+        .iter_mut()
+        .zip(&table.values)
+        .zip(&last_table.values)
+    {
+        for x in 0..2 {
+            for n in 0..NODES {
+                sum[x][n] += tail(last[x][n], before[x][n]);
+            }
+        }
+    }
+    for ((sum, last), before) in psi
+        .zenith_sums
+        .iter_mut()
+        .zip(&table.zenith_sums)
+        .zip(&last_table.zenith_sums)
+    {
+        let pairs = sum
+            .iter_mut()
+            .flatten()
+            .zip(last.iter().flatten().zip(before.iter().flatten()));
+        for (s, (last, before)) in pairs {
+            for n in 0..NODES {
+                s[n] += tail(last[n], before[n]);
+            }
+        }
+    }
+    psi.update_factors();
+    for ((sum, last), before) in irradiance
+        .values
+        .iter_mut()
+        .zip(&sky.values)
+        .zip(&last_sky.values)
+    {
+        for n in 0..NODES {
+            sum[n] += tail(last[n], before[n]);
+        }
+    }
+    (psi, irradiance)
+}
+
+/// The model's tables for one atmosphere: its phase functions at the
+/// model's wavelengths, the light scattered twice or more (Ψ) and the
+/// sky's irradiance on the ground. Every solar zenith is tabulated, so
+/// they hold for any place of the sun and the observer: a renderer may
+/// keep them while only those change (the app's sun and camera).
+pub struct ModelTables {
+    pub(super) groups: Vec<SpectralLanes>,
+    pub(super) phases: Phases,
+    pub(super) ms: MsTable,
+    pub(super) sky: SkyIrradiance,
+    /// What the tables were made of ([`fingerprint`]).
+    fingerprint: Vec<f64>,
+}
+
+impl ModelTables {
+    /// The tables of `medium` at the wavelengths of `lane_table`'s
+    /// constants.
+    pub fn new(medium: &Medium, lane_table: &LaneTable) -> Self {
+        let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
+        let groups: Vec<SpectralLanes> = nodes
+            .chunks(LANES)
+            .map(|w| lane_table.lanes(Lanes::from_fn(|j| w[j]), LANES, medium))
+            .collect();
+        let phases = Phases::new(medium, &groups);
+        let optics = Optics {
+            medium,
+            groups: &groups,
+            phases: &phases,
+            // Each table sets its own sun per solar zenith.
+            sun_direction: DVec3::Z,
+        };
+        let (ms, sky) = scattering_orders(&optics);
+        Self {
+            groups,
+            phases,
+            ms,
+            sky,
+            fingerprint: fingerprint(medium, lane_table),
+        }
+    }
+
+    /// The tables of `medium` at `lane_table`'s wavelengths, made anew or,
+    /// where the last ones made this way were of the same optics (the
+    /// same coefficients at the tables' altitudes, phase functions and
+    /// ground albedo at every node), those.
+    pub fn shared(medium: &Medium, lane_table: &LaneTable) -> Arc<Self> {
+        SHARED.get(medium, lane_table)
+    }
+}
+
+/// The last tables made, kept for the next renderer of the same optics.
+struct TableCache {
+    last: Mutex<Option<Arc<ModelTables>>>,
+}
+
+impl TableCache {
+    const fn new() -> Self {
+        Self {
+            last: Mutex::new(None),
+        }
+    }
+
+    /// See [`ModelTables::shared`].
+    fn get(&self, medium: &Medium, lane_table: &LaneTable) -> Arc<ModelTables> {
+        let key = fingerprint(medium, lane_table);
+        let mut last = self.lock();
+        if let Some(tables) = last.as_ref().filter(|t| t.fingerprint == key) {
+            return Arc::clone(tables);
+        }
+        let tables = Arc::new(ModelTables::new(medium, lane_table));
+        *last = Some(Arc::clone(&tables));
+        tables
+    }
+
+    /// The kept tables. A poisoned lock only means another thread
+    /// panicked while holding it; the value is an Arc swapped whole.
+    fn lock(&self) -> std::sync::MutexGuard<'_, Option<Arc<ModelTables>>> {
+        self.last
+            .lock()
+            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    }
+}
+
+/// The tables [`ModelTables::shared`] made last.
+static SHARED: TableCache = TableCache::new();
+
+/// Drops the tables [`ModelTables::shared`] keeps, so that the next call
+/// makes them anew (the bench's cold first frame).
+pub fn forget_shared_tables() {
+    *SHARED.lock() = None;
+}
+
+/// The optics the tables are made of, sampled: each node's coefficients
+/// at the tables' altitudes, its ground albedo and its phase functions
+/// at a few angles.
+fn fingerprint(medium: &Medium, lane_table: &LaneTable) -> Vec<f64> {
+    let top_m = medium.top_radius_m - medium.planet_radius_m;
+    let mut key = vec![medium.planet_radius_m, medium.top_radius_m];
+    for k in 0..GROUPS {
+        let lanes = lane_table.lanes(
+            Lanes::from_fn(|j| node_wavelength(k * LANES + j)),
+            LANES,
+            medium,
+        );
+        key.extend(lanes.ground_albedo);
+        key.extend(lanes.rayleigh_gamma);
+        for i in 0..MS_ALTITUDES {
+            let r = medium.planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
+            let c = medium.coefficients(r, &lanes);
+            key.extend(c.rayleigh);
+            key.extend(c.aerosol_scattering);
+            key.extend((0..LANES).map(|j| c.extinction(j)));
+        }
+        for mu in [-1.0, 0.0, 0.9, 1.0] {
+            key.extend(medium.aerosol_phases(mu, &lanes));
+        }
+    }
+    key
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::Renderer;
+    use crate::Scene;
+
+    /// The tables are kept for renderers of the same atmosphere, whatever
+    /// the sun, observer and camera, and made anew for another.
+    #[test]
+    fn tables_are_shared_by_atmosphere() {
+        // A cache of its own: other tests use the shared one meanwhile.
+        let cache = TableCache::new();
+        let tables = |scene: &Scene| {
+            let renderer = Renderer::new(scene).unwrap();
+            cache.get(&renderer.medium, &renderer.lane_table)
+        };
+        let sunset = Scene::preset("sunset").unwrap();
+        let first = tables(&sunset);
+        let mut moved = sunset.clone();
+        moved.sun.elevation_deg = 40.0;
+        moved.observer.altitude_m = 10_000.0;
+        assert!(Arc::ptr_eq(&first, &tables(&moved)));
+        let mut hazier = sunset.clone();
+        hazier.atmosphere.aerosol_amount *= 2.0;
+        let other = tables(&hazier);
+        assert!(!Arc::ptr_eq(&first, &other));
+        assert!(other.fingerprint != first.fingerprint);
+        // And back: made anew (one set is kept), equal to the first.
+        let again = tables(&sunset);
+        assert!(!Arc::ptr_eq(&other, &again));
+        assert!(again.fingerprint == first.fingerprint);
+    }
+}
