@@ -45,15 +45,18 @@ fn model_error(name: &str) -> f64 {
 
 #[test]
 fn the_model_is_within_its_measured_error_of_the_path_tracer() {
-    // The bounds are the errors measured at this size (midday 3.3 %,
-    // sunset 7.7 %, twilight 9.8 %, space 11.5 %; BENCHMARKS.md) with
-    // room for the reference's noise. The first Monte Carlo pass is off by
-    // 65–1100 %.
+    // The bounds are the errors measured at this size (midday 3.7 %,
+    // sunset 7.4 %, twilight 9.5 %, space 13.8 %, Mars at noon 15.4 %;
+    // BENCHMARKS.md) with room for the reference's noise. Mars's dust has
+    // a forward peak narrower than the tables' direction spacing: summed
+    // without care it made the low sky 1.8× too bright. The first Monte
+    // Carlo pass is off by 65–1100 %.
     for (name, bound) in [
         ("midday", 0.05),
         ("sunset", 0.10),
         ("twilight", 0.13),
-        ("space", 0.15),
+        ("space", 0.17),
+        ("mars-noon", 0.20),
     ] {
         let error = model_error(name);
         eprintln!("{name}: model error {:.1} %", error * 100.0);
