@@ -103,15 +103,6 @@ pub struct ModelField {
 }
 
 impl ModelField {
-    /// The field of `medium` lit along `sun_direction`, at the wavelengths
-    /// of `lane_table`'s constants.
-    pub fn new(medium: &Medium, lane_table: &LaneTable, sun_direction: DVec3) -> Self {
-        Self::from_tables(
-            Arc::new(ModelTables::new(medium, lane_table)),
-            sun_direction,
-        )
-    }
-
     /// The field of `tables`' atmosphere lit along `sun_direction`.
     pub fn from_tables(tables: Arc<ModelTables>, sun_direction: DVec3) -> Self {
         Self {
@@ -151,20 +142,9 @@ impl ModelField {
 pub const MODEL_NODES: usize = NODES;
 
 impl SkyModel {
-    /// The model of `medium` lit along `sun_direction`, seen from
-    /// `observer_m`, in the sun and colours of `lane_table` and `cmf`.
-    pub fn new(
-        medium: &Medium,
-        lane_table: &LaneTable,
-        cmf: &ColourMatching,
-        sun_direction: DVec3,
-        observer_m: DVec3,
-    ) -> Self {
-        let tables = Arc::new(ModelTables::new(medium, lane_table));
-        Self::from_tables(tables, medium, lane_table, cmf, sun_direction, observer_m)
-    }
-
-    /// [`Self::new`] with `medium`'s tables already made.
+    /// The model of `tables`' atmosphere `medium` lit along
+    /// `sun_direction`, seen from `observer_m`, in the sun and colours of
+    /// `lane_table` and `cmf`.
     pub fn from_tables(
         tables: Arc<ModelTables>,
         medium: &Medium,
@@ -443,14 +423,16 @@ mod tests {
         for name in ["sunset", "space"] {
             let renderer = Renderer::new(&Scene::preset(name).unwrap()).unwrap();
             let (medium, sun) = (&renderer.medium, renderer.sun_direction);
-            let model = SkyModel::new(
+            let tables = Arc::new(ModelTables::new(medium, &renderer.lane_table));
+            let model = SkyModel::from_tables(
+                Arc::clone(&tables),
                 medium,
                 &renderer.lane_table,
                 renderer.cmf,
                 sun,
                 renderer.observer_m,
             );
-            let field = ModelField::new(medium, &renderer.lane_table, sun);
+            let field = ModelField::from_tables(tables, sun);
             let [zenith, x, y] = model.frame;
             // (exact, table) luminance per view.
             let mut pairs = Vec::new();

@@ -243,28 +243,28 @@ impl<'a> Sources<'a> {
 /// order's table is J_{n+1,X}(ν) = Σ_ω L_n(ω) P_X(ω·v) Δω for the
 /// phase functions P_X, L_n the light of order n arriving from ω (the
 /// air's and the ground's), v at ν from the sun (averaged over two
-/// azimuths about it): Bruneton & Neyret's (2008) iteration over
-/// scattering orders, with the view's zenith folded into ν. The model's
-/// Ψ is the sum over orders ([`scattering_orders`]).
+/// azimuths about it), times a factor over the view's zenith and azimuth:
+/// Bruneton & Neyret's (2008) iteration over scattering orders. The
+/// model's Ψ is the sum over orders (`orders::scattering_orders`).
 #[derive(Clone)]
 pub(super) struct MsTable {
     pub(super) planet_radius_m: f64,
     pub(super) top_m: f64,
     /// Per (altitude, zenith, ν): (J_R, J_A).
     pub(super) values: Vec<[Spectrum; 2]>,
-    /// Per (altitude, zenith, view zenith): the sums over azimuths of J at
-    /// views at that zenith and of the ν table at the same views' angles
-    /// from the sun, for each of R and A.
+    /// Per (altitude, zenith, view zenith, view azimuth): J at that view
+    /// and the ν table at its angle to the sun, for each of R and A (with
+    /// the phase peaks capped); summed over orders.
     pub(super) zenith_sums: Vec<[[Spectrum; 2]; 2]>,
-    /// Per (altitude, zenith, view zenith): the ratio of the two sums,
-    /// by which the ν table's J is scaled at that view zenith.
+    /// Per (altitude, zenith, view zenith, view azimuth): the ratio of the
+    /// two, by which the ν table's J is scaled at that view.
     pub(super) zenith_factors: Vec<[Spectrum; 2]>,
 }
 
 /// View-zenith cosines of [`MsTable`]'s zenith factors: μ_v = u|u|,
 /// dense about the horizon.
 pub(super) const MS_VIEW_ZENITHS: usize = 13;
-/// Azimuths over which a zenith factor is averaged.
+/// View azimuths from the sun's (0–180°) of the zenith factors.
 pub(super) const MS_VIEW_AZIMUTHS: usize = 6;
 
 pub(super) fn view_zenith_cosine_of(i: usize) -> f64 {

@@ -165,30 +165,26 @@ impl MsTable {
                                 .collect::<Vec<[Spectrum; 2]>>()
                         };
                         let (row, row_capped) = (nu_row(&to_view), nu_row(&to_view_capped));
+                        // Per view at a tabulated zenith and azimuth: J
+                        // there and the ν table at its angle to the sun,
+                        // both with the capped phase functions.
                         let factors = zenith_views
-                            .chunks(1)
-                            .zip(to_zenith_view.chunks(1))
-                            .map(|(views, phases)| {
-                                // Σ over azimuths of J at the views and of
-                                // the ν table at their angles to the sun.
-                                let (mut direct, mut table) =
-                                    ([[0.0; NODES]; 2], [[0.0; NODES]; 2]);
-                                for ((_, index), phases) in views.iter().zip(phases) {
-                                    for (l, (pr, pa)) in arriving.iter().zip(phases) {
-                                        for n in 0..NODES {
-                                            direct[0][n] += l[n] * pr[n] * weight;
-                                            direct[1][n] += l[n] * pa[n] * weight;
-                                        }
-                                    }
-                                    let a = (*index as usize).min(MS_VIEW_ANGLES - 2);
-                                    let f = index - a as f64;
-                                    for x in 0..2 {
-                                        for n in 0..NODES {
-                                            let (lo, hi) = (row_capped[a], row_capped[a + 1]);
-                                            table[x][n] += lo[x][n] + f * (hi[x][n] - lo[x][n]);
-                                        }
+                            .iter()
+                            .zip(&to_zenith_view)
+                            .map(|((_, index), phases)| {
+                                let mut direct = [[0.0; NODES]; 2];
+                                for (l, (pr, pa)) in arriving.iter().zip(phases) {
+                                    for n in 0..NODES {
+                                        direct[0][n] += l[n] * pr[n] * weight;
+                                        direct[1][n] += l[n] * pa[n] * weight;
                                     }
                                 }
+                                let a = (*index as usize).min(MS_VIEW_ANGLES - 2);
+                                let f = index - a as f64;
+                                let (lo, hi) = (&row_capped[a], &row_capped[a + 1]);
+                                let table = std::array::from_fn(|x| {
+                                    std::array::from_fn(|n| lo[x][n] + f * (hi[x][n] - lo[x][n]))
+                                });
                                 [direct, table]
                             })
                             .collect::<Vec<[[Spectrum; 2]; 2]>>();
@@ -230,6 +226,19 @@ impl MsTable {
         };
         table.update_factors();
         table
+    }
+
+    /// Every number the orders add up: the ν table's, then the zenith
+    /// sums' (the factors follow from them).
+    fn numbers(&self) -> impl Iterator<Item = &f64> {
+        let sums = self.zenith_sums.iter().flatten().flatten().flatten();
+        self.values.iter().flatten().flatten().chain(sums)
+    }
+
+    /// [`Self::numbers`], to change.
+    fn numbers_mut(&mut self) -> impl Iterator<Item = &mut f64> {
+        let sums = self.zenith_sums.iter_mut().flatten().flatten().flatten();
+        self.values.iter_mut().flatten().flatten().chain(sums)
     }
 
     /// The zenith factors from the zenith sums.
@@ -335,24 +344,16 @@ fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
         // E_{n−1}).
         let next_sky = SkyIrradiance::scattered(optics, Some(&table));
         let next_table = MsTable::scattered(optics, Some((&table, &sky)));
-        for (sum, v) in psi.values.iter_mut().zip(&next_table.values) {
-            for x in 0..2 {
-                for n in 0..NODES {
-                    sum[x][n] += v[x][n];
-                }
-            }
+        for (sum, v) in psi.numbers_mut().zip(next_table.numbers()) {
+            *sum += v;
         }
-        for (sum, v) in psi.zenith_sums.iter_mut().zip(&next_table.zenith_sums) {
-            for (s, v) in sum.iter_mut().flatten().zip(v.iter().flatten()) {
-                for n in 0..NODES {
-                    s[n] += v[n];
-                }
-            }
-        }
-        for (sum, v) in irradiance.values.iter_mut().zip(&next_sky.values) {
-            for n in 0..NODES {
-                sum[n] += v[n];
-            }
+        for (sum, v) in irradiance
+            .values
+            .iter_mut()
+            .flatten()
+            .zip(next_sky.values.iter().flatten())
+        {
+            *sum += v;
         }
         (last_table, last_sky) = (table, sky);
         (table, sky) = (next_table, next_sky);
@@ -365,44 +366,18 @@ fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
             0.0
         }
     };
-    for ((sum, last), before) in psi
-        .values
-        .iter_mut()
-        .zip(&table.values)
-        .zip(&last_table.values)
-    {
-        for x in 0..2 {
-            for n in 0..NODES {
-                sum[x][n] += tail(last[x][n], before[x][n]);
-            }
-        }
-    }
-    for ((sum, last), before) in psi
-        .zenith_sums
-        .iter_mut()
-        .zip(&table.zenith_sums)
-        .zip(&last_table.zenith_sums)
-    {
-        let pairs = sum
-            .iter_mut()
-            .flatten()
-            .zip(last.iter().flatten().zip(before.iter().flatten()));
-        for (s, (last, before)) in pairs {
-            for n in 0..NODES {
-                s[n] += tail(last[n], before[n]);
-            }
-        }
+    let table_pairs = table.numbers().zip(last_table.numbers());
+    for (sum, (&last, &before)) in psi.numbers_mut().zip(table_pairs) {
+        *sum += tail(last, before);
     }
     psi.update_factors();
-    for ((sum, last), before) in irradiance
+    let sky_pairs = sky
         .values
-        .iter_mut()
-        .zip(&sky.values)
-        .zip(&last_sky.values)
-    {
-        for n in 0..NODES {
-            sum[n] += tail(last[n], before[n]);
-        }
+        .iter()
+        .flatten()
+        .zip(last_sky.values.iter().flatten());
+    for (sum, (&last, &before)) in irradiance.values.iter_mut().flatten().zip(sky_pairs) {
+        *sum += tail(last, before);
     }
     (psi, irradiance)
 }
@@ -425,6 +400,11 @@ impl ModelTables {
     /// The tables of `medium` at the wavelengths of `lane_table`'s
     /// constants.
     pub fn new(medium: &Medium, lane_table: &LaneTable) -> Self {
+        Self::made(medium, lane_table, fingerprint(medium, lane_table))
+    }
+
+    /// [`Self::new`], its fingerprint already taken.
+    fn made(medium: &Medium, lane_table: &LaneTable, fingerprint: Vec<f64>) -> Self {
         let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
         let groups: Vec<SpectralLanes> = nodes
             .chunks(LANES)
@@ -444,7 +424,7 @@ impl ModelTables {
             phases,
             ms,
             sky,
-            fingerprint: fingerprint(medium, lane_table),
+            fingerprint,
         }
     }
 
@@ -476,7 +456,7 @@ impl TableCache {
         if let Some(tables) = last.as_ref().filter(|t| t.fingerprint == key) {
             return Arc::clone(tables);
         }
-        let tables = Arc::new(ModelTables::new(medium, lane_table));
+        let tables = Arc::new(ModelTables::made(medium, lane_table, key));
         *last = Some(Arc::clone(&tables));
         tables
     }
