@@ -9,9 +9,10 @@ use chrono::{DateTime, Duration, FixedOffset, SecondsFormat};
 use crate::output;
 use crate::physics::solar_position;
 use crate::render::exact::ExactSum;
+use crate::render::fast::{self, FastError};
 use crate::render::parts::{PartData, PassRange, Tile};
 use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
-use crate::scene::{Scene, SceneError};
+use crate::scene::{RenderMode, Scene, SceneError};
 
 /// Why a render to a file did not produce its file.
 #[derive(Debug, thiserror::Error)]
@@ -89,6 +90,9 @@ pub fn render_to_file(
     mut progress: impl FnMut(u32, u32),
 ) -> Result<(u32, u64, u64), ExportError> {
     check_spectral_output(scene, path)?;
+    if scene.render.mode == RenderMode::Fast {
+        return render_fast_to_file(scene, path, cancel, progress);
+    }
     let renderer = Renderer::new(scene)?;
     let layers = &scene.output.layers;
     if !layers.is_empty()
@@ -161,6 +165,56 @@ pub fn render_to_file(
         scene.render.exposure_ev.map(|v| v as f32),
     )?;
     Ok((total, paths, film.discarded))
+}
+
+/// [`render_to_file`] in the fast mode ([`crate::render::fast`]): the
+/// header says so (`skyrender:mode` `fast`, `skyrender:fast_scale`,
+/// `skyrender:coarse_size`), and its sample counts are the coarse
+/// render's.
+fn render_fast_to_file(
+    scene: &Scene,
+    path: &Path,
+    cancel: &AtomicBool,
+    progress: impl FnMut(u32, u32),
+) -> Result<(u32, u64, u64), ExportError> {
+    output::OutputFormat::from_path(path)?;
+    let rendered = fast::render(scene, cancel, progress)
+        .map_err(|e| match e {
+            FastError::Scene(e) => ExportError::Scene(e),
+            FastError::Memory(e) => ExportError::Memory(e),
+        })?
+        .ok_or(ExportError::Cancelled)?;
+    let mut coarse = scene.clone();
+    (coarse.render.width, coarse.render.height) = rendered.coarse_size;
+    let mut metadata = image_metadata(
+        &coarse,
+        &rendered.image,
+        rendered.spp,
+        rendered.paths,
+        rendered.discarded,
+    );
+    // The scene as asked for, not the coarse one.
+    for (key, value) in &mut metadata {
+        if key == "skyrender:scene" {
+            *value = scene.to_toml();
+        }
+    }
+    let (cw, ch) = rendered.coarse_size;
+    metadata.extend([
+        ("skyrender:mode".into(), "fast".into()),
+        (
+            "skyrender:fast_scale".into(),
+            scene.render.fast_scale.to_string(),
+        ),
+        ("skyrender:coarse_size".into(), format!("{cw}x{ch}")),
+    ]);
+    output::write_image(
+        path,
+        &rendered.image,
+        &metadata,
+        scene.render.exposure_ev.map(|v| v as f32),
+    )?;
+    Ok((rendered.spp, rendered.paths, rendered.discarded))
 }
 
 /// Checks that `scene`'s spectral image, if it asks for one, can be

@@ -34,12 +34,14 @@ use crate::render::Renderer;
 use crate::scene::{CameraKind, Scene};
 
 mod ablation;
+mod fast;
 mod machine;
 mod noise;
 mod report;
 
 use ablation::selected_variants;
 pub use ablation::{ablation_variants, Variant};
+pub use fast::FastResult;
 use machine::{cpu_model, measure_memory, measure_scaling, read_trimmed, thread_pool};
 pub use machine::{Machine, MemoryResult, ScalingResult};
 pub use noise::SUN_CONE_DEG;
@@ -254,6 +256,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
     let mut results = Vec::new();
     let mut details = Vec::new();
     let mut ablation = Vec::new();
+    let mut fast_rows = Vec::new();
     for (name, scene) in &scenes {
         eprintln!("bench: {name}: {budget_s} s on {threads} thread(s)");
         let run = pool.install(|| measure_noise(scene, budget_s, seed))?;
@@ -309,6 +312,17 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             run: run.clone(),
         });
         if name != PREVIEW {
+            let scales: &[u32] = if args.quick {
+                &fast::BENCH_SCALES[..1]
+            } else {
+                &fast::BENCH_SCALES
+            };
+            for &scale in scales {
+                eprintln!("bench: {name}: fast mode at scale {scale}");
+                fast_rows.push(
+                    pool.install(|| fast::measure_fast(name, scene, &run, scale, budget_s, seed))?,
+                );
+            }
             for variant in &variants {
                 eprintln!("bench: {name}: ablation {}", variant.name());
                 // A switch the scene cannot take (circle splatting from
@@ -335,6 +349,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
                     seconds: v.seconds,
                     noise_ratio: ratio,
                     time_ratio: ratio * ratio,
+                    noise_ground_at_budget: v.noise_ground,
+                    ground_noise_ratio: equal_time(v.noise_ground, run.noise_ground),
                     noise_whole_at_budget: v.noise_whole,
                     whole_noise_ratio: equal_time(v.noise_whole, run.noise_whole),
                     paths_per_s: v.paths_per_s(),
@@ -377,6 +393,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
         "first_frame_ms: median of Renderer::new + the sky model's image at the app's default preview size (320x160), the model's tables for the atmosphere kept from before: what the app shows first after a change of sun, camera or size; details.first_frame_cold_ms: the same with the tables made anew (the app's start, a change of atmosphere)".into(),
+        "fast: the fast mode (render --mode fast) at fast_scale 2 and 4 (coarse renders of 128x64 and 64x32), two images (seeds + 3, + 4) of budget/2 each; bias: RMS of their mean minus the reference (the mean of A and B) over the whole image relative to the reference's mean, both noises removed in quadrature; time_to_1pct_4k_s: a 4096x2048 export at the default scale 8 (512x256 coarse), extrapolated from the coarse render's noise (time ∝ coarse pixels) plus composing (∝ pixels)".into(),
         "CPU share: CPU time of this process / (wall time x threads) while rendering; below 100 % means other processes took cores (throughput and noise at budget then understate the renderer)".into(),
     ];
     Ok(Report {
@@ -393,6 +410,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         scenes: results,
         details,
         ablation,
+        fast: fast_rows,
         scaling,
         memory,
         notes,

@@ -111,7 +111,7 @@ pub fn time_to_noise(noise: f64, seconds: f64, target: f64) -> f64 {
     }
 }
 
-fn luminance(film: &Film) -> Vec<f64> {
+pub(super) fn luminance(film: &Film) -> Vec<f64> {
     let mut y = Vec::with_capacity(film.width as usize * film.height as usize);
     for row in 0..film.height {
         for x in 0..film.width {
@@ -178,6 +178,13 @@ pub struct NoiseRun {
     /// a change: the passes so far blended with the model
     /// ([`crate::render::service::model_weight`]).
     pub preview_error_2s: f64,
+    /// The mean of A and B (luminance, row-major): the reference other
+    /// images are compared with.
+    #[serde(skip)]
+    pub reference: Vec<f64>,
+    /// The whole-image mask (see `noise_whole`).
+    #[serde(skip)]
+    pub whole_mask: Vec<bool>,
 }
 
 impl NoiseRun {
@@ -267,6 +274,8 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         first_pass_error: f64::NAN,
         model_error: f64::NAN,
         preview_error_2s: f64::NAN,
+        reference: Vec::new(),
+        whole_mask: Vec::new(),
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
@@ -375,6 +384,8 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     run.preview_error_2s = (error * error - run.noise_whole * run.noise_whole)
         .max(0.0)
         .sqrt();
+    run.reference = mean;
+    run.whole_mask = whole;
     Ok(run)
 }
 

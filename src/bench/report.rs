@@ -111,6 +111,10 @@ pub struct AblationRow {
     pub noise_ratio: f64,
     /// Time the variant needs for the full renderer's noise, relative (= ratio²).
     pub time_ratio: f64,
+    /// Relative noise of the variant over the ground's pixels at the budget.
+    pub noise_ground_at_budget: f64,
+    /// [`Self::noise_ratio`] over the ground's pixels.
+    pub ground_noise_ratio: f64,
     /// Relative noise of the variant over the whole image (ground
     /// included, the sun's cone left out) at the budget.
     pub noise_whole_at_budget: f64,
@@ -144,6 +148,8 @@ pub struct Report {
     pub details: Vec<SceneDetail>,
     /// Ablation rows (`--ablation`).
     pub ablation: Vec<AblationRow>,
+    /// The fast mode against the reference, per scene and scale.
+    pub fast: Vec<super::FastResult>,
     /// Parallel scaling (`--scaling`).
     pub scaling: Option<ScalingResult>,
     /// Peak memory (`--memory`).
@@ -300,6 +306,34 @@ pub fn format_report(report: &Report) -> String {
             d.first_frame_cold_ms,
         );
     }
+    if !report.fast.is_empty() {
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "Fast mode (render --mode fast; bias: RMS relative error against the reference, noise removed; 4K: 4096x2048 at scale 8 to 1 % whole-image noise, extrapolated)\n"
+        );
+        let _ = writeln!(
+            out,
+            "| scene | scale | coarse | bias | whole-image noise | mean ratio | render s | compose s | 4K to 1 %, s |"
+        );
+        let _ = writeln!(out, "|---|---:|---|---:|---:|---:|---:|---:|---:|");
+        for f in &report.fast {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {}x{} | {} | {} | {} | {:.1} | {:.3} | {:.0} |",
+                f.scene,
+                f.fast_scale,
+                f.coarse_size.0,
+                f.coarse_size.1,
+                pct(f.bias),
+                pct(f.noise_whole),
+                num(f.mean_ratio, 3),
+                f.seconds,
+                f.compose_s,
+                f.time_to_1pct_4k_s
+            );
+        }
+    }
     if !report.ablation.is_empty() {
         let _ = writeln!(out);
         let _ = writeln!(
@@ -308,11 +342,11 @@ pub fn format_report(report: &Report) -> String {
         );
         let _ = writeln!(
             out,
-            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | whole-image noise | whole-image ratio | M paths/s | CPU share | mean ratio |"
+            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | ground noise | ground ratio | whole-image noise | whole-image ratio | M paths/s | CPU share | mean ratio |"
         );
         let _ = writeln!(
             out,
-            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         for a in &report.ablation {
             let overran = if a.seconds > 1.1 * report.budget_s {
@@ -322,13 +356,15 @@ pub fn format_report(report: &Report) -> String {
             };
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {:.1}{overran} | {} | {} | {} | {} | {:.3} | {} | {} |",
+                "| {} | {} | {} | {:.1}{overran} | {} | {} | {} | {} | {} | {} | {:.3} | {} | {} |",
                 a.scene,
                 a.variant,
                 pct(a.noise_at_budget),
                 a.seconds,
                 num(a.noise_ratio, 2),
                 num(a.time_ratio, 2),
+                pct(a.noise_ground_at_budget),
+                num(a.ground_noise_ratio, 2),
                 pct(a.noise_whole_at_budget),
                 num(a.whole_noise_ratio, 2),
                 a.paths_per_s / 1e6,

@@ -153,6 +153,13 @@ impl SplitArgs {
         if self.tile.is_none() && self.tiles.is_none() && self.passes.is_none() {
             return Ok(None);
         }
+        if scene.render.mode == crate::scene::RenderMode::Fast {
+            return Err(SceneError::new(
+                "mode",
+                "the fast mode renders a whole image: split renders (--tile, --tiles, --passes) are for the reference mode",
+            )
+            .into());
+        }
         let (width, height) = (scene.render.width, scene.render.height);
         let fail = |parameter: &str, e: String| SceneError::new(parameter, e);
         let tile = match (&self.tile, self.tiles, self.tile_index) {

@@ -96,6 +96,16 @@ pub struct SceneArgs {
     /// vertical plane (see `[render] mirror_symmetry`).
     #[arg(long)]
     pub no_mirror: bool,
+    /// Render mode: reference (unbiased Monte Carlo at every pixel) or fast
+    /// (the approximate sky model at full resolution, corrected by Monte
+    /// Carlo at --fast-scale times coarser: consistent, not unbiased; its
+    /// bias per preset is in BENCHMARKS.md) [default: reference].
+    #[arg(long, value_name = "MODE")]
+    pub mode: Option<String>,
+    /// Fast mode: the Monte Carlo correction's width and height are the
+    /// image's over this factor, 1 to 64 [default: 8].
+    #[arg(long, allow_negative_numbers = true, value_name = "N")]
+    pub fast_scale: Option<i64>,
     /// Random seed, 0 to 2^63 - 1: the same scene and seed give the same
     /// image at any thread count [default: 1].
     #[arg(long, allow_negative_numbers = true, value_name = "S")]
@@ -251,6 +261,13 @@ impl SceneArgs {
         }
         if let Some(v) = self.seed {
             scene.render.seed = v;
+        }
+        if let Some(name) = &self.mode {
+            scene.render.mode = crate::scene::RenderMode::from_name(name)?;
+        }
+        if let Some(v) = self.fast_scale {
+            scene.render.fast_scale =
+                count("fast scale", v, i64::from(crate::scene::MAX_FAST_SCALE))?;
         }
         if self.no_adaptive {
             scene.render.adaptive_sampling = false;

@@ -97,6 +97,13 @@ impl Renderer {
         self.scene.output.layers.iter().any(|l| l == "variance")
     }
 
+    /// Whether the view ray along `dir` (unit) meets the ground.
+    pub fn meets_ground(&self, dir: DVec3) -> bool {
+        self.medium
+            .span(self.observer_m, dir)
+            .is_some_and(|s| s.hits_ground)
+    }
+
     /// Per pixel (row-major), whether the view ray through its centre
     /// meets the ground; `false` where no ray goes through it.
     pub fn centre_ground(&self) -> Vec<bool> {

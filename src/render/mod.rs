@@ -17,6 +17,7 @@ pub mod columns;
 pub mod control;
 pub mod directions;
 pub mod exact;
+pub mod fast;
 pub mod film;
 pub mod film_layers;
 pub mod film_spectral;

@@ -160,6 +160,19 @@ impl Renderer {
     /// ([`super::sky_model::ModelTables::shared`]): with them made, tens
     /// of milliseconds.
     pub fn sky_model_image(&self) -> crate::output::RgbImage {
+        let r = &self.scene.render;
+        self.sky_model_image_for(&self.camera, r.width, r.height)
+    }
+
+    /// [`Self::sky_model_image`] through another `camera` of this scene's
+    /// sky, `width` × `height` pixels (the fast mode's image,
+    /// [`super::fast`]).
+    pub fn sky_model_image_for(
+        &self,
+        camera: &Camera,
+        width: u32,
+        height: u32,
+    ) -> crate::output::RgbImage {
         let model = super::sky_model::SkyModel::from_tables(
             super::sky_model::ModelTables::shared(&self.medium, &self.lane_table),
             &self.medium,
@@ -168,8 +181,7 @@ impl Renderer {
             self.sun_direction,
             self.observer_m,
         );
-        let r = &self.scene.render;
-        model.image(&self.camera, r.width, r.height)
+        model.image(camera, width, height)
     }
 
     /// The camera.

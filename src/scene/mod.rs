@@ -14,9 +14,11 @@ use crate::physics::solar_position::{self, SunPlacement};
 use crate::plan::IntegratorOptions;
 use crate::spectrum::Observer;
 
+mod mode;
 mod output;
 mod planet;
 
+pub use mode::{RenderMode, DEFAULT_FAST_SCALE, MAX_FAST_SCALE};
 pub use output::{OutputParams, MAX_SPECTRAL_BANDS, OUTPUT_LAYERS};
 use planet::with_planet_defaults;
 pub use planet::PlanetParams;
@@ -221,6 +223,13 @@ pub struct RenderParams {
     pub mirror_symmetry: bool,
     /// The technique switches (`[render.integrator]`).
     pub integrator: IntegratorOptions,
+    /// The reference (unbiased, the default) or the explicit fast mode.
+    #[serde(skip_serializing_if = "RenderMode::is_reference")]
+    pub mode: RenderMode,
+    /// The fast mode's Monte Carlo correction runs at the image's width and
+    /// height over this factor ([`crate::render::fast`]).
+    #[serde(skip_serializing_if = "mode::is_default_fast_scale")]
+    pub fast_scale: u32,
 }
 
 impl Default for RenderParams {
@@ -236,6 +245,8 @@ impl Default for RenderParams {
             adaptive_sampling: true,
             mirror_symmetry: true,
             integrator: IntegratorOptions::default(),
+            mode: RenderMode::Reference,
+            fast_scale: DEFAULT_FAST_SCALE,
         }
     }
 }
@@ -631,6 +642,7 @@ impl Scene {
             ));
         }
         check_count("spp", r.spp as usize, 1, MAX_SPP as usize)?;
+        mode::validate(r.mode, r.fast_scale, &self.output)?;
         if r.seed > MAX_SEED {
             return Err(SceneError::new(
                 "seed",
