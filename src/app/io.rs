@@ -413,6 +413,7 @@ mod tests {
             discarded: 0,
             finished: true,
             model_weight: 0.0,
+            coarse_passes: 0,
         }
     }
 

@@ -918,6 +918,7 @@ mod tests {
             discarded: 0,
             finished: false,
             model_weight: 0.4,
+            coarse_passes: 0,
         };
         let at = 1500 * MS;
         let both = screenshot_report(

@@ -8,6 +8,7 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
+use crate::render::preview::Preview;
 use crate::render::{Camera, Film, Renderer};
 use crate::scene::Scene;
 
@@ -344,7 +345,6 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         .ok_or_else(|| format!("seed {seed}: the first pass's seed (seed + 2) overflows"))?;
     let mut s = scene.clone();
     s.render.seed = third;
-    let since_change = std::time::Instant::now();
     let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
     let mut film = renderer.new_film();
     renderer.render_pass(&mut film, 0, &|| false);
@@ -366,20 +366,20 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     run.model_error = (error * error - run.noise_whole * run.noise_whole)
         .max(0.0)
         .sqrt();
-    // What the preview shows PREVIEW_SECONDS after a change: the passes so
-    // far (the first one above) blended with the model as the app blends.
-    let mut pass = 1;
-    while since_change.elapsed().as_secs_f64() < PREVIEW_SECONDS {
-        renderer.render_pass(&mut film, pass, &|| false);
-        pass += 1;
+    // What the preview shows PREVIEW_SECONDS after a change: the last image
+    // its steps (render::preview, as the app's service takes them)
+    // completed by then, from a renderer made anew.
+    let since_change = std::time::Instant::now();
+    let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
+    let mut preview = Preview::new(&renderer);
+    let mut last = preview.model().clone();
+    while let Some(step) = preview.step(&|| false) {
+        if since_change.elapsed().as_secs_f64() > PREVIEW_SECONDS {
+            break;
+        }
+        last = step.image;
     }
-    let passes = film.to_rgb();
-    let w = crate::render::service::model_weight(&passes, &model_image);
-    let shown: Vec<f64> = y(&passes)
-        .iter()
-        .zip(&model)
-        .map(|(p, m)| (1.0 - w) * p + w * m)
-        .collect();
+    let shown = y(&last);
     let error = relative_noise(&shown, &mean, &whole) * 2.0;
     run.preview_error_2s = (error * error - run.noise_whole * run.noise_whole)
         .max(0.0)

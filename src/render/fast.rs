@@ -129,23 +129,45 @@ pub fn render(
 /// The fast-mode image of `scene` from its coarse renderer `coarse`
 /// ([`coarse_scene`]) and the passes on its `film` so far.
 pub fn compose(scene: &Scene, coarse: &Renderer, film: &Film) -> Result<RgbImage, OutOfMemory> {
+    let (width, height) = (scene.render.width, scene.render.height);
+    let camera = Camera::new(&scene.camera, width, height);
+    let model = coarse.sky_model_image_for(&camera, width, height);
+    correct(
+        scene,
+        &camera,
+        model,
+        coarse,
+        &coarse.sky_model_image(),
+        film,
+    )
+}
+
+/// [`compose`] with the models made: `model`, the model's image of
+/// `scene` through `camera` (its own size), corrected by the passes on
+/// `film` of the coarse renderer `coarse`, whose own model image is
+/// `coarse_model`.
+pub fn correct(
+    scene: &Scene,
+    camera: &Camera,
+    model: RgbImage,
+    coarse: &Renderer,
+    coarse_model: &RgbImage,
+    film: &Film,
+) -> Result<RgbImage, OutOfMemory> {
     let passes = film.try_to_rgb().map_err(|_| coarse.out_of_memory())?;
     let disc = film
         .try_layer_images()
         .map_err(|_| coarse.out_of_memory())?
         .map(|[_, sun, _]| sun);
-    let (width, height) = (scene.render.width, scene.render.height);
-    let camera = Camera::new(&scene.camera, width, height);
-    let model = coarse.sky_model_image_for(&camera, width, height);
     let correction = Coarse {
         camera: coarse.camera(),
         passes: &passes.pixels,
-        model: &coarse.sky_model_image().pixels,
+        model: &coarse_model.pixels,
         disc: disc.as_deref(),
         wraps: scene.camera.kind == CameraKind::Equirect,
         meets_ground: &|dir| coarse.meets_ground(dir),
     };
-    Ok(correction.apply(model, &camera, coarse.sun_direction()))
+    Ok(correction.apply(model, camera, coarse.sun_direction()))
 }
 
 /// The coarse images behind a fast-mode image.

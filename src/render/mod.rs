@@ -29,6 +29,7 @@ pub mod layers;
 pub mod medium;
 pub mod memory;
 pub mod parts;
+pub mod preview;
 pub mod probe;
 pub mod renderer;
 pub mod service;

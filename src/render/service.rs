@@ -11,6 +11,7 @@ use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
 use super::parts::{PassRange, Tile};
+use super::preview::Preview;
 use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
 use crate::scene::{CameraKind, Scene};
@@ -79,6 +80,9 @@ pub struct Frame {
     /// `image`, 0–1 ([`model_weight`]): 1 for the first frame, before any
     /// pass; 0 once the passes are done.
     pub model_weight: f64,
+    /// Coarse passes behind the model's correction in `image`
+    /// ([`super::preview`]).
+    pub coarse_passes: u32,
 }
 
 /// The sky model's typical RMS error over a whole image, relative to its
@@ -104,6 +108,12 @@ pub const OUTLIER_RATIO: f64 = 100.0;
 /// hold the weight at 1 whenever the sun is in view. Only the app's
 /// preview blends: renders and exports are the passes alone.
 pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
+    model_weight_with(passes, model, MODEL_ERROR)
+}
+
+/// [`model_weight`] for a model of typical relative RMS error `error`
+/// (the corrected model's, [`super::preview::CORRECTED_ERROR`]).
+pub fn model_weight_with(passes: &RgbImage, model: &RgbImage, error: f64) -> f64 {
     let y = |p: &[f32; 3]| crate::spectrum::rec709_luminance(p.map(f64::from));
     let (mut diff2, mut sum, mut n) = (0.0, 0.0, 0.0);
     for (p, m) in passes.pixels.iter().zip(&model.pixels) {
@@ -118,10 +128,10 @@ pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
         return 0.0;
     }
     let relative2 = diff2 / n / (sum / n).powi(2);
-    if relative2 <= MODEL_ERROR * MODEL_ERROR {
+    if relative2 <= error * error {
         0.0
     } else {
-        1.0 - MODEL_ERROR * MODEL_ERROR / relative2
+        1.0 - error * error / relative2
     }
 }
 
@@ -260,9 +270,8 @@ fn worker_loop(shared: &Shared) {
         };
         let stale = || shared.epoch.load(Ordering::SeqCst) != epoch;
         let start = Instant::now();
-        let target = scene.render.spp;
         // The first frame: the approximate model, in tens of milliseconds.
-        let model = renderer.sky_model_image();
+        let mut preview = Preview::new(&renderer);
         if stale() {
             continue;
         }
@@ -271,19 +280,18 @@ fn worker_loop(shared: &Shared) {
             epoch,
             Frame {
                 epoch,
-                image: model.clone(),
+                image: preview.model().clone(),
                 spp: 0,
                 paths: 0,
                 elapsed: start.elapsed(),
                 discarded: 0,
                 finished: false,
                 model_weight: 1.0,
+                coarse_passes: 0,
             },
         );
-        let mut film = renderer.new_film();
-        let mut paths = 0u64;
-        for pass in 0..target {
-            // Pausing keeps the film; resume continues where it stopped.
+        loop {
+            // Pausing keeps the films; resume continues where it stopped.
             {
                 let mut state = shared.state.lock().unwrap();
                 while state.paused && !stale() && !state.shutdown {
@@ -293,56 +301,30 @@ fn worker_loop(shared: &Shared) {
             if stale() {
                 break;
             }
-            let stats = renderer.render_pass(&mut film, pass, &stale);
-            paths += stats.paths;
-            if !stats.completed {
+            let Some(shown) = preview.step(&stale) else {
                 break;
-            }
-            publish(
+            };
+            let finished = shown.finished;
+            publish_image(
                 shared,
                 epoch,
-                &film,
-                (pass + 1, target),
-                start,
-                paths,
-                &model,
+                Frame {
+                    epoch,
+                    image: shown.image,
+                    spp: shown.spp,
+                    paths: preview.paths,
+                    elapsed: start.elapsed(),
+                    discarded: preview.film().discarded,
+                    finished,
+                    model_weight: shown.model_weight,
+                    coarse_passes: shown.coarse_passes,
+                },
             );
+            if finished {
+                break;
+            }
         }
     }
-}
-
-fn publish(
-    shared: &Shared,
-    epoch: u64,
-    film: &Film,
-    (spp, target): (u32, u32),
-    start: Instant,
-    paths: u64,
-    model: &RgbImage,
-) {
-    let mut image = film.to_rgb();
-    let w = if spp >= target {
-        0.0
-    } else {
-        model_weight(&image, model)
-    };
-    if w > 0.0 {
-        for (p, m) in image.pixels.iter_mut().zip(&model.pixels) {
-            *p =
-                std::array::from_fn(|c| ((1.0 - w) * f64::from(p[c]) + w * f64::from(m[c])) as f32);
-        }
-    }
-    let frame = Frame {
-        epoch,
-        image,
-        spp,
-        paths,
-        elapsed: start.elapsed(),
-        discarded: film.discarded,
-        finished: spp >= target,
-        model_weight: w,
-    };
-    publish_image(shared, epoch, frame);
 }
 
 fn publish_image(shared: &Shared, epoch: u64, frame: Frame) {

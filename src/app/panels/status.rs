@@ -54,11 +54,17 @@ impl StatusBar<'_> {
                          low-resolution first look after a change)",
                     );
                     if f.model_weight > 0.0 {
-                        ui.label(format!("model {:.0} %", f.model_weight * 100.0))
+                        let corrected = if f.coarse_passes > 0 {
+                            format!(" (corrected by {} coarse passes)", f.coarse_passes)
+                        } else {
+                            String::new()
+                        };
+                        ui.label(format!("model {:.0} %{corrected}", f.model_weight * 100.0))
                             .on_hover_text(
                                 "Share of the approximate sky model in the image: the first \
-                                 frame is the model alone, and it fades as the passes' noise \
-                                 falls below its error (exports never contain it)",
+                                 frame is the model alone, then the model corrected by a \
+                                 quarter-size Monte Carlo render, and it fades as the passes' \
+                                 noise falls below its error (exports never contain it)",
                             );
                     }
                     ui.label(format!(

@@ -1,0 +1,231 @@
+//! What the app's preview shows as a render goes on, step by step: the
+//! approximate sky model first ([`super::sky_model`], tens of
+//! milliseconds), then the model corrected by a coarse Monte Carlo render
+//! (the fast mode's image, [`super::fast`], at a quarter of the width and
+//! height: each coarse pass costs a sixteenth of a full one), then the
+//! full-size passes, blended with the corrected model until their noise
+//! falls below its error ([`model_weight_with`]). The finished image is
+//! the passes alone: only the preview ever shows the model.
+//!
+//! A full pass at sunset takes seconds on two cores; the model alone is
+//! 4–14 % off (`BENCHMARKS.md`); corrected by even a few coarse passes, a
+//! few per cent at most, and by day well under one.
+
+use std::time::{Duration, Instant};
+
+use super::service::{model_weight_with, MODEL_ERROR};
+use super::{fast, Film, Renderer};
+use crate::output::RgbImage;
+use crate::spectrum::rec709_luminance;
+
+/// The coarse render's width and height are the preview's over this.
+pub const PREVIEW_SCALE: u32 = 4;
+/// Coarse passes before the full-size ones: the work of four full passes
+/// at [`PREVIEW_SCALE`] (16 coarse passes cost about one full one), by
+/// when the corrected model's noise is below its bias.
+pub const PREVIEW_COARSE_PASSES: u32 = 64;
+/// The corrected model's typical RMS error over a whole image, relative to
+/// its mean luminance, after [`PREVIEW_COARSE_PASSES`]: bias and the
+/// coarse passes' noise, 1–4 % over the bench's scenes (`BENCHMARKS.md`).
+pub const CORRECTED_ERROR: f64 = 0.03;
+
+/// One image the preview shows.
+#[derive(Clone, Debug)]
+pub struct Shown {
+    /// Linear Rec.709, Y in cd m⁻², at the scene's size.
+    pub image: RgbImage,
+    /// Full-size passes in `image`.
+    pub spp: u32,
+    /// Coarse passes behind the correction of the model in `image`.
+    pub coarse_passes: u32,
+    /// The model's share (corrected or not) in `image`, 0–1.
+    pub model_weight: f64,
+    /// The full-size passes are all done.
+    pub finished: bool,
+}
+
+/// The coarse render behind the corrected model.
+struct CoarsePhase {
+    renderer: Renderer,
+    model: RgbImage,
+    film: Film,
+    passes: u32,
+    /// How long the last composition took.
+    compose_time: Duration,
+}
+
+/// A preview of one renderer's scene, advanced one step at a time.
+pub struct Preview<'a> {
+    renderer: &'a Renderer,
+    model: RgbImage,
+    coarse: Option<CoarsePhase>,
+    /// The coarse phase is over (done, not wanted, or not possible).
+    coarse_done: bool,
+    corrected: Option<RgbImage>,
+    film: Film,
+    pass: u32,
+    coarse_passes: u32,
+    /// Camera paths traced, coarse and full-size.
+    pub paths: u64,
+}
+
+impl<'a> Preview<'a> {
+    /// The preview of `renderer`'s scene: its first image is the model's.
+    pub fn new(renderer: &'a Renderer) -> Self {
+        let r = &renderer.scene.render;
+        // A one-pass draft, or an image too small to have a coarser one,
+        // goes straight to its passes.
+        let coarse_wanted =
+            r.spp > 1 && r.width >= 4 * PREVIEW_SCALE && r.height >= 2 * PREVIEW_SCALE;
+        Self {
+            renderer,
+            model: renderer.sky_model_image(),
+            coarse: None,
+            coarse_done: !coarse_wanted,
+            corrected: None,
+            film: renderer.new_film(),
+            pass: 0,
+            coarse_passes: 0,
+            paths: 0,
+        }
+    }
+
+    /// The model's image: the first frame.
+    pub fn model(&self) -> &RgbImage {
+        &self.model
+    }
+
+    /// The film of the full-size passes.
+    pub fn film(&self) -> &Film {
+        &self.film
+    }
+
+    /// Renders the next step — a coarse pass while the correction is being
+    /// made, else a full-size pass — and returns the image to show, or
+    /// `None` once every pass is done or `stale` stopped the step.
+    pub fn step(&mut self, stale: &(dyn Fn() -> bool + Sync)) -> Option<Shown> {
+        let target = self.renderer.scene.render.spp;
+        if self.pass >= target {
+            return None;
+        }
+        if !self.coarse_done {
+            if let Some(shown) = self.coarse_step(stale) {
+                return Some(shown);
+            }
+            if stale() {
+                return None;
+            }
+        }
+        let stats = self.renderer.render_pass(&mut self.film, self.pass, stale);
+        self.paths += stats.paths;
+        if !stats.completed {
+            return None;
+        }
+        self.pass += 1;
+        let mut image = self.film.to_rgb();
+        let finished = self.pass >= target;
+        let (model, error) = match &self.corrected {
+            Some(corrected) => (corrected, CORRECTED_ERROR),
+            None => (&self.model, MODEL_ERROR),
+        };
+        let w = if finished {
+            0.0
+        } else {
+            model_weight_with(&image, model, error)
+        };
+        if w > 0.0 {
+            for (p, m) in image.pixels.iter_mut().zip(&model.pixels) {
+                *p = std::array::from_fn(|c| {
+                    ((1.0 - w) * f64::from(p[c]) + w * f64::from(m[c])) as f32
+                });
+            }
+        }
+        Some(Shown {
+            image,
+            spp: self.pass,
+            coarse_passes: self.coarse_passes,
+            model_weight: w,
+            finished,
+        })
+    }
+
+    /// Coarse passes (as many as took as long as the last composition) and
+    /// the model corrected by the passes so far; `None`
+    /// where the phase ends (its last pass done, or no coarse render to be
+    /// had) or `stale` stopped the pass.
+    fn coarse_step(&mut self, stale: &(dyn Fn() -> bool + Sync)) -> Option<Shown> {
+        if self.coarse.is_none() {
+            let mut scene = self.renderer.scene.clone();
+            scene.render.fast_scale = PREVIEW_SCALE;
+            // The coarse scene is the valid scene at a smaller size: should
+            // it still be refused, the preview goes on without it.
+            let Ok(renderer) = Renderer::new(&fast::coarse_scene(&scene)) else {
+                self.coarse_done = true;
+                return None;
+            };
+            self.coarse = Some(CoarsePhase {
+                model: renderer.sky_model_image(),
+                film: renderer.new_film(),
+                renderer,
+                passes: 0,
+                compose_time: Duration::ZERO,
+            });
+        }
+        let phase = self.coarse.as_mut()?;
+        // Composing the image costs about a coarse pass at midday, a
+        // fifth of one at sunset: passes go on until they have taken as
+        // long as the last composition did.
+        let started = Instant::now();
+        loop {
+            let stats = phase
+                .renderer
+                .render_pass(&mut phase.film, phase.passes, stale);
+            self.paths += stats.paths;
+            if !stats.completed {
+                return None;
+            }
+            phase.passes += 1;
+            if started.elapsed() >= phase.compose_time || phase.passes >= PREVIEW_COARSE_PASSES {
+                break;
+            }
+        }
+        let composing = Instant::now();
+        self.coarse_passes = phase.passes;
+        self.coarse_done = phase.passes >= PREVIEW_COARSE_PASSES;
+        let corrected = fast::correct(
+            &self.renderer.scene,
+            self.renderer.camera(),
+            self.model.clone(),
+            &phase.renderer,
+            &phase.model,
+            &phase.film,
+        );
+        if self.coarse_done {
+            // The full-size passes need the memory more.
+            self.coarse = None;
+        }
+        let Ok(corrected) = corrected else {
+            self.coarse_done = true;
+            return None;
+        };
+        let mut image = corrected;
+        if let Some(phase) = self.coarse.as_mut() {
+            phase.compose_time = composing.elapsed();
+        }
+        // The coarse passes' noise can take a dark pixel below zero; the
+        // preview shows it black (the export of the fast mode keeps it).
+        for p in &mut image.pixels {
+            if rec709_luminance(p.map(f64::from)) < 0.0 {
+                *p = [0.0; 3];
+            }
+        }
+        self.corrected = Some(image.clone());
+        Some(Shown {
+            image,
+            spp: 0,
+            coarse_passes: self.coarse_passes,
+            model_weight: 1.0,
+            finished: false,
+        })
+    }
+}
