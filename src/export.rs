@@ -9,7 +9,7 @@ use chrono::{DateTime, Duration, FixedOffset, SecondsFormat};
 use crate::output;
 use crate::physics::solar_position;
 use crate::render::exact::ExactSum;
-use crate::render::fast::{self, FastError};
+use crate::render::fast;
 use crate::render::parts::{PartData, PassRange, Tile};
 use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
 use crate::scene::{RenderMode, Scene, SceneError};
@@ -167,6 +167,50 @@ pub fn render_to_file(
     Ok((total, paths, film.discarded))
 }
 
+/// A fast-mode image ([`crate::render::fast`]) and the coarse render
+/// behind it.
+#[derive(Clone, Debug)]
+pub struct FastImage {
+    /// Linear Rec.709, Y in cd m⁻², at the scene's resolution.
+    pub image: output::RgbImage,
+    /// The coarse render's passes.
+    pub spp: u32,
+    /// The coarse render's camera paths.
+    pub paths: u64,
+    /// The coarse render's samples discarded as not finite.
+    pub discarded: u64,
+    /// The coarse render's width and height.
+    pub coarse_size: (u32, u32),
+}
+
+/// Renders `scene` in the fast mode ([`crate::render::fast`]): its
+/// coarse render by Monte Carlo, reporting its passes to `progress`
+/// (done, total), then the model corrected by it; `None` if `cancel` was
+/// set. The memory of both sizes is checked before any work.
+pub fn render_fast(
+    scene: &Scene,
+    cancel: &AtomicBool,
+    mut progress: impl FnMut(u32, u32),
+) -> Result<Option<FastImage>, ExportError> {
+    scene.validate()?;
+    let coarse = Renderer::new(&fast::coarse_scene(scene))?;
+    fast::check_memory(scene)?;
+    let total = scene.render.spp;
+    let Some((film, paths)) =
+        service::render_blocking(&coarse, cancel, |pass, _| progress(pass, total))?
+    else {
+        return Ok(None);
+    };
+    let image = fast::compose(scene, &coarse, &film)?;
+    Ok(Some(FastImage {
+        image,
+        spp: total,
+        paths,
+        discarded: film.discarded,
+        coarse_size: (coarse.scene.render.width, coarse.scene.render.height),
+    }))
+}
+
 /// [`render_to_file`] in the fast mode ([`crate::render::fast`]): the
 /// header says so (`skyrender:mode` `fast`, `skyrender:fast_scale`,
 /// `skyrender:coarse_size`), and its sample counts are the coarse
@@ -178,12 +222,7 @@ fn render_fast_to_file(
     progress: impl FnMut(u32, u32),
 ) -> Result<(u32, u64, u64), ExportError> {
     output::OutputFormat::from_path(path)?;
-    let rendered = fast::render(scene, cancel, progress)
-        .map_err(|e| match e {
-            FastError::Scene(e) => ExportError::Scene(e),
-            FastError::Memory(e) => ExportError::Memory(e),
-        })?
-        .ok_or(ExportError::Cancelled)?;
+    let rendered = render_fast(scene, cancel, progress)?.ok_or(ExportError::Cancelled)?;
     let mut coarse = scene.clone();
     (coarse.render.width, coarse.render.height) = rendered.coarse_size;
     let mut metadata = image_metadata(

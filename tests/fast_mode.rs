@@ -1,4 +1,4 @@
-//! The fast mode (`render --mode fast`, `render::fast`): against the
+//! The fast mode (`render --mode fast`, `render::fast`, `export::render_fast`): against the
 //! reference renderer (it must keep the reference's light and remove most
 //! of the model's error), and its command line (the header says what it
 //! is; what it cannot do is refused with nothing written).
@@ -9,8 +9,8 @@ use common::{assert_one_line_error, skyrender, skyrender_ok};
 
 use std::sync::atomic::AtomicBool;
 
+use skyrender::export::render_fast;
 use skyrender::output::RgbImage;
-use skyrender::render::fast;
 use skyrender::render::service::render_blocking;
 use skyrender::render::Renderer;
 use skyrender::scene::RenderMode;
@@ -50,7 +50,7 @@ fn fast_image(name: &str, seed: u64) -> Vec<f64> {
     let mut s = scene(name, seed);
     s.render.mode = RenderMode::Fast;
     s.render.fast_scale = 2;
-    let image = fast::render(&s, &AtomicBool::new(false), |_, _| {})
+    let image = render_fast(&s, &AtomicBool::new(false), |_, _| {})
         .unwrap()
         .unwrap();
     assert_eq!(

@@ -37,46 +37,18 @@
 //! limb-darkened disc, or one reddened from below at sunset, comes out
 //! uniform).
 
-use std::sync::atomic::AtomicBool;
-
 use glam::DVec3;
 use rayon::prelude::*;
 
 use super::camera::Camera;
-use super::{service, Film, OutOfMemory, Renderer};
+use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
 use crate::physics::sun;
-use crate::scene::{CameraKind, RenderMode, Scene, SceneError};
+use crate::scene::{CameraKind, RenderMode, Scene};
 
 /// Positions per axis at which a pixel's share of the solar disc, or of
 /// the ground, is counted.
 const SHARE_GRID: usize = 16;
-
-/// A fast-mode image and the coarse render behind it.
-#[derive(Clone, Debug)]
-pub struct FastImage {
-    /// Linear Rec.709, Y in cd m⁻², at the scene's resolution.
-    pub image: RgbImage,
-    /// The coarse render's passes.
-    pub spp: u32,
-    /// The coarse render's camera paths.
-    pub paths: u64,
-    /// The coarse render's samples discarded as not finite.
-    pub discarded: u64,
-    /// The coarse render's width and height.
-    pub coarse_size: (u32, u32),
-}
-
-/// Why a fast render did not produce its image.
-#[derive(Debug, thiserror::Error)]
-pub enum FastError {
-    /// The scene is invalid.
-    #[error(transparent)]
-    Scene(#[from] SceneError),
-    /// The coarse render's buffers do not fit in memory.
-    #[error(transparent)]
-    Memory(#[from] OutOfMemory),
-}
 
 /// Width and height of the coarse render of a `width` × `height` image at
 /// `scale`: each divided by the scale, rounded up.
@@ -97,33 +69,28 @@ pub fn coarse_scene(scene: &Scene) -> Scene {
     coarse
 }
 
-/// Renders `scene` in the fast mode, reporting the coarse render's passes
-/// to `progress` (done, total); `None` if `cancel` was set.
-pub fn render(
-    scene: &Scene,
-    cancel: &AtomicBool,
-    mut progress: impl FnMut(u32, u32),
-) -> Result<Option<FastImage>, FastError> {
-    scene.validate()?;
-    let coarse = Renderer::new(&coarse_scene(scene))?;
-    let total = scene.render.spp;
-    let Some((film, paths)) =
-        service::render_blocking(&coarse, cancel, |pass, _| progress(pass, total))?
-    else {
-        return Ok(None);
-    };
-    let image = compose(scene, &coarse, &film)?;
-    Ok(Some(FastImage {
-        image,
-        spp: total,
-        paths,
-        discarded: film.discarded,
-        coarse_size: coarse_size(
-            scene.render.width,
-            scene.render.height,
-            scene.render.fast_scale,
-        ),
-    }))
+/// Bytes a pixel of the image takes while composing: the model's image
+/// (12) and a pixel's ground shares and directions on the way (a few
+/// more, per row).
+const BYTES_PER_PIXEL: u64 = 16;
+
+/// Checks, before any work, that the full-size image's memory can be had
+/// ([`BYTES_PER_PIXEL`]; the coarse render checks its own film).
+pub fn check_memory(scene: &Scene) -> Result<(), OutOfMemory> {
+    let (width, height) = (scene.render.width, scene.render.height);
+    let bytes = u64::from(width) * u64::from(height) * BYTES_PER_PIXEL;
+    let fits = usize::try_from(bytes)
+        .ok()
+        .is_some_and(|b| Vec::<u8>::new().try_reserve_exact(b).is_ok());
+    if fits {
+        Ok(())
+    } else {
+        Err(OutOfMemory {
+            width,
+            height,
+            bytes,
+        })
+    }
 }
 
 /// The fast-mode image of `scene` from its coarse renderer `coarse`

@@ -85,55 +85,7 @@ pub struct Frame {
     pub coarse_passes: u32,
 }
 
-/// The sky model's typical RMS error over a whole image, relative to its
-/// mean luminance: 3–12 % over the bench's scenes (`BENCHMARKS.md`, "The
-/// preview's first frame").
-pub const MODEL_ERROR: f64 = 0.1;
-
-/// See [`model_weight`]: a pixel of the passes this many times the model's
-/// is the sun's disc (10⁵–10⁶ times the sky) or a rare bright sample, not
-/// the spread that sets the blend.
-pub const OUTLIER_RATIO: f64 = 100.0;
-
-/// The approximate sky model's share in a preview frame, from the passes'
-/// image so far (`passes`) and the model's (`model`). With independent
-/// errors, the model's bias m and the passes' noise σ, the blend
-/// (1 − w) passes + w model has the least mean squared error at
-/// w = σ²/(σ² + m²). The squared RMS difference between the two images,
-/// relative to the mean, D² ≈ m² + σ², gives σ² ≈ D² − m²; with m =
-/// [`MODEL_ERROR`], w = 1 − m²/D² (0 where D ≤ m): the noisier the
-/// passes, the more of the frame the model keeps, until enough passes are
-/// in. Pixels where the passes exceed the model [`OUTLIER_RATIO`]-fold are
-/// left out of D: the sun's disc, which the model lacks, would otherwise
-/// hold the weight at 1 whenever the sun is in view. Only the app's
-/// preview blends: renders and exports are the passes alone.
-pub fn model_weight(passes: &RgbImage, model: &RgbImage) -> f64 {
-    model_weight_with(passes, model, MODEL_ERROR)
-}
-
-/// [`model_weight`] for a model of typical relative RMS error `error`
-/// (the corrected model's, [`super::preview::CORRECTED_ERROR`]).
-pub fn model_weight_with(passes: &RgbImage, model: &RgbImage, error: f64) -> f64 {
-    let y = |p: &[f32; 3]| crate::spectrum::rec709_luminance(p.map(f64::from));
-    let (mut diff2, mut sum, mut n) = (0.0, 0.0, 0.0);
-    for (p, m) in passes.pixels.iter().zip(&model.pixels) {
-        let (a, b) = (y(p), y(m));
-        if a.is_finite() && b.is_finite() && a <= OUTLIER_RATIO * b.max(0.0) {
-            diff2 += (a - b) * (a - b);
-            sum += b;
-            n += 1.0;
-        }
-    }
-    if n == 0.0 || sum <= 0.0 {
-        return 0.0;
-    }
-    let relative2 = diff2 / n / (sum / n).powi(2);
-    if relative2 <= error * error {
-        0.0
-    } else {
-        1.0 - error * error / relative2
-    }
-}
+pub use super::preview::{model_weight, model_weight_with, MODEL_ERROR, OUTLIER_RATIO};
 
 impl Frame {
     /// Camera paths per second of wall time so far.
