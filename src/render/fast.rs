@@ -75,7 +75,7 @@ pub fn coarse_scene(scene: &Scene) -> Scene {
 const BYTES_PER_PIXEL: u64 = 16;
 
 /// Checks, before any work, that the full-size image's memory can be had
-/// ([`BYTES_PER_PIXEL`]; the coarse render checks its own film).
+/// (16 bytes a pixel; the coarse render checks its own film).
 pub fn check_memory(scene: &Scene) -> Result<(), OutOfMemory> {
     let (width, height) = (scene.render.width, scene.render.height);
     let bytes = u64::from(width) * u64::from(height) * BYTES_PER_PIXEL;
@@ -366,7 +366,7 @@ impl Coarse<'_> {
 
 /// The pixels of `camera`'s image that the solar disc about
 /// `sun_direction` covers, with the share of each one's area it covers
-/// (counted on a [`SHARE_GRID`]² grid of positions); `wraps`: the image
+/// (counted on a 16 × 16 grid of positions); `wraps`: the image
 /// wraps around in x (the equirect map).
 pub fn disc_shares(camera: &Camera, sun_direction: DVec3, wraps: bool) -> Vec<(usize, f64)> {
     let Some((u, v)) = camera.project(sun_direction) else {
