@@ -112,7 +112,7 @@ pub fn time_to_noise(noise: f64, seconds: f64, target: f64) -> f64 {
     }
 }
 
-pub(super) fn luminance(film: &Film) -> Vec<f64> {
+fn luminance(film: &Film) -> Vec<f64> {
     let mut y = Vec::with_capacity(film.width as usize * film.height as usize);
     for row in 0..film.height {
         for x in 0..film.width {
@@ -176,8 +176,9 @@ pub struct NoiseRun {
     /// ([`crate::render::sky_model`]): the preview's first frame.
     pub model_error: f64,
     /// The same error for what the preview shows `PREVIEW_SECONDS` (2 s) after
-    /// a change: the passes so far blended with the model
-    /// ([`crate::render::service::model_weight`]).
+    /// a change: the last image [`crate::render::preview::Preview`]
+    /// completed by then (the model, corrected by coarse passes, then the
+    /// full passes blended with it).
     pub preview_error_2s: f64,
     /// The mean of A and B (luminance, row-major): the reference other
     /// images are compared with.

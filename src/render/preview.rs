@@ -8,8 +8,8 @@
 //! the passes alone: only the preview ever shows the model.
 //!
 //! A full pass at sunset takes seconds on two cores; the model alone is
-//! 4–14 % off (`BENCHMARKS.md`); corrected by even a few coarse passes, a
-//! few per cent at most, and by day well under one.
+//! 4–14 % off; corrected, about 1 % by day two seconds after a change and
+//! 4–6 % at low sun and from orbit (`BENCHMARKS.md`).
 
 use std::time::{Duration, Instant};
 
