@@ -25,6 +25,9 @@ pub struct ExportSettings {
     pub timelapse: TimelapseSettings,
     /// Write every compositing layer beside the image (`render --layers`).
     pub layers: bool,
+    /// The fast mode (`render --mode fast`): the sky model corrected by a
+    /// Monte Carlo render at an eighth of the size; no layers.
+    pub fast: bool,
 }
 
 impl Default for ExportSettings {
@@ -34,6 +37,7 @@ impl Default for ExportSettings {
             spp: 64,
             timelapse: TimelapseSettings::default(),
             layers: false,
+            fast: false,
         }
     }
 }

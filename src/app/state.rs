@@ -561,8 +561,12 @@ impl AppState {
         scene.render.width = width;
         scene.render.height = width / 2;
         scene.render.spp = self.export.spp.clamp(1, MAX_EXPORT_SPP);
+        // The fast mode writes the image alone.
+        if self.export.fast {
+            scene.render.mode = crate::scene::RenderMode::Fast;
+        }
         // Every layer; the variance needs three passes.
-        scene.output.layers = if self.export.layers {
+        scene.output.layers = if self.export.layers && !self.export.fast {
             crate::scene::OUTPUT_LAYERS
                 .iter()
                 .filter(|&&l| l != "variance" || scene.render.spp >= 3)
@@ -658,6 +662,21 @@ mod tests {
         state.set_export_spp(2);
         let layers = state.export_scene().output.layers;
         assert!(layers.contains(&"sky".to_owned()) && !layers.contains(&"variance".to_owned()));
+    }
+
+    #[test]
+    fn the_fast_export_is_the_fast_mode_without_layers() {
+        let mut state = AppState::default();
+        assert_eq!(
+            state.export_scene().render.mode,
+            crate::scene::RenderMode::Reference
+        );
+        state.export.layers = true;
+        state.export.fast = true;
+        let scene = state.export_scene();
+        assert_eq!(scene.render.mode, crate::scene::RenderMode::Fast);
+        assert!(scene.output.layers.is_empty());
+        scene.validate().unwrap();
     }
 
     #[test]
