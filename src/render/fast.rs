@@ -98,21 +98,19 @@ pub fn check_memory(scene: &Scene) -> Result<(), OutOfMemory> {
 pub fn compose(scene: &Scene, coarse: &Renderer, film: &Film) -> Result<RgbImage, OutOfMemory> {
     let (width, height) = (scene.render.width, scene.render.height);
     let camera = Camera::new(&scene.camera, width, height);
-    let model = coarse.sky_model_image_for(&camera, width, height);
-    correct(
-        scene,
-        &camera,
-        model,
-        coarse,
-        &coarse.sky_model_image(),
-        film,
-    )
+    // One model of the sky, imaged at both sizes.
+    let sky = coarse.sky_model();
+    let r = &coarse.scene.render;
+    let coarse_model = sky.image(coarse.camera(), r.width, r.height);
+    let model = sky.image(&camera, width, height);
+    correct(scene, &camera, model, coarse, &coarse_model, film, None)
 }
 
 /// [`compose`] with the models made: `model`, the model's image of
 /// `scene` through `camera` (its own size), corrected by the passes on
 /// `film` of the coarse renderer `coarse`, whose own model image is
-/// `coarse_model`.
+/// `coarse_model`; `places`, where given, is [`places`] of `camera` in
+/// the coarse one (kept by a caller that composes again and again).
 pub fn correct(
     scene: &Scene,
     camera: &Camera,
@@ -120,6 +118,7 @@ pub fn correct(
     coarse: &Renderer,
     coarse_model: &RgbImage,
     film: &Film,
+    places: Option<&[Option<Place>]>,
 ) -> Result<RgbImage, OutOfMemory> {
     let passes = film.try_to_rgb().map_err(|_| coarse.out_of_memory())?;
     let disc = film
@@ -134,7 +133,56 @@ pub fn correct(
         wraps: scene.camera.kind == CameraKind::Equirect,
         meets_ground: &|dir| coarse.meets_ground(dir),
     };
-    Ok(correction.apply(model, camera, coarse.sun_direction()))
+    let sun = coarse.sun_direction();
+    Ok(match places {
+        Some(places) => correction.apply_at(model, camera, sun, |i| places[i]),
+        None => correction.apply(model, camera, sun),
+    })
+}
+
+/// Where a pixel of the image takes its correction: its centre's position
+/// in the coarse image (pixel centres at whole numbers) and the share of
+/// its rays that meet the ground.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Place {
+    gx: f64,
+    gy: f64,
+    ground: f64,
+}
+
+/// [`Place`] of pixel (`x`, `y`) of `camera` in `coarse`; `None` where it
+/// has no ray or the coarse camera does not see its centre.
+fn place(
+    camera: &Camera,
+    coarse: &Camera,
+    x: usize,
+    y: usize,
+    meets_ground: &dyn Fn(DVec3) -> bool,
+) -> Option<Place> {
+    let dir = camera.direction(x as f64 + 0.5, y as f64 + 0.5)?;
+    let (u, v) = coarse.project(dir)?;
+    let ground = ground_share(camera, x, y, meets_ground)?;
+    Some(Place {
+        gx: u - 0.5,
+        gy: v - 0.5,
+        ground,
+    })
+}
+
+/// Every pixel's [`Place`] (row-major) of `camera` in the coarse
+/// renderer's camera: the geometry of a composition, the same for every
+/// one of a render's.
+pub fn places(camera: &Camera, coarse: &Renderer) -> Vec<Option<Place>> {
+    let width = camera.size().0 as usize;
+    let pixels = width * camera.size().1 as usize;
+    (0..pixels)
+        .into_par_iter()
+        .map(|i| {
+            place(camera, coarse.camera(), i % width, i / width, &|dir| {
+                coarse.meets_ground(dir)
+            })
+        })
+        .collect()
 }
 
 /// The coarse images behind a fast-mode image.
@@ -223,7 +271,22 @@ impl Coarse<'_> {
     /// sky, the ground's from those that see mostly ground, and a pixel the
     /// horizon crosses takes each in proportion to its share of sky and
     /// ground.
-    pub fn apply(&self, mut model: RgbImage, camera: &Camera, sun_direction: DVec3) -> RgbImage {
+    pub fn apply(&self, model: RgbImage, camera: &Camera, sun_direction: DVec3) -> RgbImage {
+        let width = camera.size().0 as usize;
+        self.apply_at(model, camera, sun_direction, |i| {
+            place(camera, self.camera, i % width, i / width, self.meets_ground)
+        })
+    }
+
+    /// [`Self::apply`] with each pixel's [`Place`] (by row-major index)
+    /// from `place_of`.
+    fn apply_at(
+        &self,
+        mut model: RgbImage,
+        camera: &Camera,
+        sun_direction: DVec3,
+        place_of: impl Fn(usize) -> Option<Place> + Sync,
+    ) -> RgbImage {
         let (cw, ch) = self.camera.size();
         let (cw, ch) = (cw as usize, ch as usize);
         // The correction, the disc taken out, and what each coarse pixel sees.
@@ -244,19 +307,14 @@ impl Coarse<'_> {
             .enumerate()
             .for_each(|(y, row)| {
                 for (x, pixel) in row.iter_mut().enumerate() {
-                    let Some(dir) = camera.direction(x as f64 + 0.5, y as f64 + 0.5) else {
+                    let Some(p) = place_of(y * width + x) else {
                         continue;
                     };
-                    let Some((u, v)) = self.camera.project(dir) else {
-                        continue;
-                    };
-                    let at =
-                        |only: Part| self.interpolate(&residual, &shares, only, u - 0.5, v - 0.5);
-                    let r = match ground_share(camera, x, y, self.meets_ground) {
-                        None => continue,
-                        Some(g) if g <= 0.0 => at(Part::Sky),
-                        Some(g) if g >= 1.0 => at(Part::Ground),
-                        Some(g) => {
+                    let at = |only: Part| self.interpolate(&residual, &shares, only, p.gx, p.gy);
+                    let r = match p.ground {
+                        g if g <= 0.0 => at(Part::Sky),
+                        g if g >= 1.0 => at(Part::Ground),
+                        g => {
                             let (sky, ground) = (at(Part::Sky), at(Part::Ground));
                             let g = g as f32;
                             [0, 1, 2].map(|c| (1.0 - g) * sky[c] + g * ground[c])

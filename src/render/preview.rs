@@ -13,6 +13,7 @@
 
 use std::time::{Duration, Instant};
 
+use super::sky_model::SkyModel;
 use super::{fast, Film, Renderer};
 use crate::output::RgbImage;
 use crate::spectrum::rec709_luminance;
@@ -97,6 +98,8 @@ pub struct Shown {
 struct CoarsePhase {
     renderer: Renderer,
     model: RgbImage,
+    /// Where each of the preview's pixels takes its correction.
+    places: Vec<Option<fast::Place>>,
     film: Film,
     passes: u32,
     /// How long the last composition took.
@@ -106,6 +109,9 @@ struct CoarsePhase {
 /// A preview of one renderer's scene, advanced one step at a time.
 pub struct Preview<'a> {
     renderer: &'a Renderer,
+    /// The scene's approximate sky, imaged at the preview's size and, for
+    /// the correction, at the coarse one.
+    sky: SkyModel,
     model: RgbImage,
     coarse: Option<CoarsePhase>,
     /// The coarse phase is over (done, not wanted, or not possible).
@@ -126,9 +132,11 @@ impl<'a> Preview<'a> {
         // goes straight to its passes.
         let coarse_wanted =
             r.spp > 1 && r.width >= 4 * PREVIEW_SCALE && r.height >= 2 * PREVIEW_SCALE;
+        let sky = renderer.sky_model();
         Self {
             renderer,
-            model: renderer.sky_model_image(),
+            model: sky.image(renderer.camera(), r.width, r.height),
+            sky,
             coarse: None,
             coarse_done: !coarse_wanted,
             corrected: None,
@@ -212,8 +220,10 @@ impl<'a> Preview<'a> {
                 self.coarse_done = true;
                 return None;
             };
+            let c = &renderer.scene.render;
             self.coarse = Some(CoarsePhase {
-                model: renderer.sky_model_image(),
+                model: self.sky.image(renderer.camera(), c.width, c.height),
+                places: fast::places(self.renderer.camera(), &renderer),
                 film: renderer.new_film(),
                 renderer,
                 passes: 0,
@@ -248,6 +258,7 @@ impl<'a> Preview<'a> {
             &phase.renderer,
             &phase.model,
             &phase.film,
+            Some(&phase.places),
         );
         if self.coarse_done {
             // The full-size passes need the memory more.

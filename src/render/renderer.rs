@@ -161,27 +161,21 @@ impl Renderer {
     /// of milliseconds.
     pub fn sky_model_image(&self) -> crate::output::RgbImage {
         let r = &self.scene.render;
-        self.sky_model_image_for(&self.camera, r.width, r.height)
+        self.sky_model().image(&self.camera, r.width, r.height)
     }
 
-    /// [`Self::sky_model_image`] through another `camera` of this scene's
-    /// sky, `width` × `height` pixels (the fast mode's image,
-    /// [`super::fast`]).
-    pub fn sky_model_image_for(
-        &self,
-        camera: &Camera,
-        width: u32,
-        height: u32,
-    ) -> crate::output::RgbImage {
-        let model = super::sky_model::SkyModel::from_tables(
+    /// The approximate sky of [`super::sky_model`] for this scene's sun and
+    /// observer, to image through any camera (the fast mode images it at
+    /// two sizes, [`super::fast`]).
+    pub fn sky_model(&self) -> super::sky_model::SkyModel {
+        super::sky_model::SkyModel::from_tables(
             super::sky_model::ModelTables::shared(&self.medium, &self.lane_table),
             &self.medium,
             &self.lane_table,
             self.cmf,
             self.sun_direction,
             self.observer_m,
-        );
-        model.image(camera, width, height)
+        )
     }
 
     /// The camera.
