@@ -109,6 +109,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("circle_splatting=true", |s| {
             s.render.integrator.circle_splatting = Some(true);
         }),
+        ("ground_splatting=false", |s| {
+            s.render.integrator.ground_splatting = Some(false);
+        }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
         }),

@@ -242,6 +242,9 @@ pub struct TechniquePlan {
     pub control_source: ControlSource,
     /// Multiply scattered light splatted along circles.
     pub circle_splatting: bool,
+    /// The skylight the ground reflects splatted along circles (only with
+    /// `circle_splatting`).
+    pub ground_splatting: bool,
     /// How pixel samples draw their first random numbers.
     pub sampler: Sampler,
     /// The first pass's weight in the film's average (1 for later ones).
@@ -309,6 +312,7 @@ impl TechniquePlan {
             control_variate: control_variate && options.max_scattering_order.is_none(),
             control_source: options.control_source.unwrap_or_default(),
             circle_splatting,
+            ground_splatting: circle_splatting && options.ground_splatting.unwrap_or(true),
             sampler: options.sampler,
             draft_weight: row.draft_weight,
         }
@@ -417,6 +421,8 @@ mod tests {
             assert_eq!(plan.termination.splitting, row.splitting);
             assert_eq!(plan.control_variate, row.control_variate);
             assert_eq!(plan.circle_splatting, row.circle_splatting);
+            // The ground's splats go with the air's.
+            assert_eq!(plan.ground_splatting, row.circle_splatting);
             let lobe = if row.control_variate {
                 regime::CONTROL_SUN_LOBE
             } else {
@@ -488,8 +494,14 @@ mod tests {
             ..at(-4.0)
         };
         let plan = TechniquePlan::new(&default, &no_circles);
-        assert!(!plan.circle_splatting);
+        assert!(!plan.circle_splatting && !plan.ground_splatting);
         assert_eq!(plan.camera.samples, CAMERA_SAMPLES);
+        let no_ground = IntegratorOptions {
+            ground_splatting: Some(false),
+            ..IntegratorOptions::default()
+        };
+        let plan = TechniquePlan::new(&no_ground, &at(-4.0));
+        assert!(plan.circle_splatting && !plan.ground_splatting);
         let delta_camera = IntegratorOptions {
             camera_samples: Some(0),
             ..IntegratorOptions::default()

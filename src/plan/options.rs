@@ -101,6 +101,12 @@ pub struct IntegratorOptions {
     /// the sun's axis. Needs `camera_samples` > 0, `next_event_estimation`
     /// and the observer inside the atmosphere. Unset: the regime table's.
     pub circle_splatting: Option<bool>,
+    /// The skylight the ground reflects splatted along the same circles:
+    /// the camera's rays that meet the ground keep its direct sunlight, and
+    /// bounces from points anywhere on the visible ground carry the rest to
+    /// the pixels of 32 points on their circle. Only with
+    /// `circle_splatting`. Unset: on wherever `circle_splatting` is.
+    pub ground_splatting: Option<bool>,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -130,6 +136,7 @@ impl Default for IntegratorOptions {
             control_variate: None,
             control_source: None,
             circle_splatting: None,
+            ground_splatting: None,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }

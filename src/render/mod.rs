@@ -5,8 +5,8 @@
 //! (scene seed, the pixel's sample number, pixel), each pixel sums its
 //! samples in order, and the adaptive plan is a function of the image, so
 //! the image does not depend on the number of threads. The splatted paths
-//! ([`circles`]) each draw from a generator of their own, and their splats
-//! are added in the paths' order.
+//! ([`circles`], [`ground_circles`]) each draw from a generator of their
+//! own, and their splats are added in the paths' order.
 
 pub mod adaptive;
 pub mod alloc;
@@ -21,6 +21,7 @@ pub mod fast;
 pub mod film;
 pub mod film_layers;
 pub mod film_spectral;
+pub mod ground_circles;
 pub mod guide;
 pub mod integrator;
 pub mod lane_values;

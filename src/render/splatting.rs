@@ -7,12 +7,18 @@ use rayon::prelude::*;
 
 use super::circles::SPLATS_PER_WALK;
 use super::film_spectral::Splat;
+use super::ground_circles::GROUND_SPLATS;
 use super::{Film, Integrator, Renderer, Sampler};
 use crate::rng::{mix64, Rng, SOBOL_POINTS};
 use crate::spectrum::K_M;
 
 /// The stream of [`Renderer::splat_pass`]'s paths (past any pixel's).
 pub(crate) const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
+/// The stream of the ground's bounces ([`super::ground_circles`]).
+const GROUND_STREAM: u64 = u64::MAX - 0x96d0;
+/// Ground bounces per path splatted in the air, each splatting
+/// [`GROUND_SPLATS`] positions (`BENCHMARKS.md`).
+const GROUND_WALKS_PER_WALK: u64 = 2;
 /// Points splatted per pixel in each pass after the first ([`circles`];
 /// each with two directions and paths): with more, the camera's own
 /// samples (single scattering, the ground) get too few passes; 2 and 3
@@ -59,8 +65,8 @@ impl Renderer {
         const CHUNK: u64 = 256;
         // Chunks run in parallel between checks for cancellation; their
         // number does not change the image (splats are added in order).
-        // Capped: each holds up to CHUNK × SPLATS_PER_WALK splats (512 KiB)
-        // until added.
+        // Capped: each holds up to CHUNK × (SPLATS_PER_WALK + the ground's
+        // GROUND_SPLATS) splats (half as many again with the ground) until added.
         let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
         let splatter = self.tables.splatter(
             &self.medium,
@@ -71,6 +77,18 @@ impl Renderer {
         let Some(splatter) = splatter else {
             return (0, 0);
         };
+        let ground = self
+            .plan
+            .ground_splatting
+            .then(|| {
+                self.tables.ground_splatter(
+                    &self.medium,
+                    &self.integrator(1),
+                    &self.camera,
+                    self.observer_m,
+                )
+            })
+            .flatten();
         let paths_total =
             u64::from(film.width) * u64::from(film.height) * splat_paths_per_pixel(pass);
         let chunks = paths_total.div_ceil(CHUNK);
@@ -86,7 +104,11 @@ impl Renderer {
                 .into_par_iter()
                 .map(|c| {
                     let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
-                    let mut splats = Vec::with_capacity(CHUNK as usize * SPLATS_PER_WALK);
+                    let per_walk = SPLATS_PER_WALK
+                        + ground
+                            .as_ref()
+                            .map_or(0, |_| GROUND_WALKS_PER_WALK as usize * GROUND_SPLATS);
+                    let mut splats = Vec::with_capacity(CHUNK as usize * per_walk);
                     let mut moments = Vec::with_capacity(CHUNK as usize);
                     let mut discarded = 0;
                     for walk in walks.clone() {
@@ -133,6 +155,46 @@ impl Renderer {
                         }
                         discarded += walked.discarded;
                         moments.extend(walked.moment);
+                        // The ground's bounces, each a share of the walk's
+                        // unit (the film divides by walks), with their own
+                        // generators and wavelengths.
+                        for g in 0..ground.as_ref().map_or(0, |_| GROUND_WALKS_PER_WALK) {
+                            let Some(ground) = ground else { break };
+                            let index = walk * GROUND_WALKS_PER_WALK + g;
+                            let rng = Rng::for_sample(
+                                seed,
+                                (u64::from(pass) << 40) ^ index,
+                                GROUND_STREAM,
+                            );
+                            let mut rng = match integrator.plan.sampler {
+                                Sampler::Sobol => rng.with_sobol_prefix(
+                                    seed ^ mix64(u64::from(pass)),
+                                    GROUND_STREAM ^ (index / SOBOL_POINTS),
+                                    (index % SOBOL_POINTS) as u32,
+                                ),
+                                Sampler::Independent => rng,
+                            };
+                            let (lanes, pdfs) = self.sample_lanes(rng.uniform());
+                            let weights = std::array::from_fn(|j| {
+                                let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
+                                bar.map(|b| K_M * b / (pdfs[j] * n as f64))
+                            });
+                            let before = splats.len();
+                            discarded += ground.walk(
+                                integrator,
+                                &self.camera,
+                                &lanes,
+                                &weights,
+                                1.0 / GROUND_WALKS_PER_WALK as f64,
+                                &mut rng,
+                                &mut splats,
+                            );
+                            for s in &mut splats[before..] {
+                                for (v, p) in s.lanes.values.iter_mut().zip(pdfs).take(n) {
+                                    *v = (f64::from(*v) / (p * n as f64)) as f32;
+                                }
+                            }
+                        }
                     }
                     ChunkSplats {
                         splats,

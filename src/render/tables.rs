@@ -14,6 +14,7 @@ use glam::DVec3;
 use super::camera::Camera;
 use super::circles::CircleSplatter;
 use super::control::{CellCoefficients, CellProjection, RadianceTable, COEFFICIENTS, NODES};
+use super::ground_circles::GroundSplatter;
 use super::guide::SkyGuide;
 use super::integrator::Integrator;
 use super::lanes::LaneTable;
@@ -44,6 +45,8 @@ pub struct Tables {
     pub control: Option<RadianceTable>,
     /// The splatter, built on first use (after the draft pass).
     splatter: OnceLock<Option<CircleSplatter>>,
+    /// The ground's splatter, likewise.
+    ground_splatter: OnceLock<Option<GroundSplatter>>,
 }
 
 impl Tables {
@@ -98,6 +101,7 @@ impl Tables {
             sky_guide,
             control,
             splatter: OnceLock::new(),
+            ground_splatter: OnceLock::new(),
         }
     }
 
@@ -134,6 +138,29 @@ impl Tables {
         self.splatter
             .get_or_init(|| {
                 CircleSplatter::new(
+                    medium,
+                    integrator,
+                    self.sky_guide.as_deref(),
+                    camera,
+                    observer_m,
+                )
+            })
+            .as_ref()
+    }
+
+    /// The splatter of the ground's skylight along the same circles
+    /// ([`GroundSplatter`]), built with `integrator` on first use; `None`
+    /// where there is nothing to splat.
+    pub(crate) fn ground_splatter(
+        &self,
+        medium: &Medium,
+        integrator: &Integrator<'_>,
+        camera: &Camera,
+        observer_m: DVec3,
+    ) -> Option<&GroundSplatter> {
+        self.ground_splatter
+            .get_or_init(|| {
+                GroundSplatter::new(
                     medium,
                     integrator,
                     self.sky_guide.as_deref(),

@@ -710,6 +710,14 @@ impl Scene {
                 "needs camera_samples ≥ 1 and next_event_estimation = true",
             ));
         }
+        if i.ground_splatting == Some(true) && i.circle_splatting == Some(false) {
+            // The ground's splats go along the circles the air's do, and
+            // with them.
+            return Err(SceneError::new(
+                "ground_splatting",
+                "needs circle_splatting (unset or true)",
+            ));
+        }
         if i.splitting == Some(true) && !i.russian_roulette {
             // Splitting's other half is roulette (dim paths end); without
             // it the option would silently do nothing.
@@ -807,6 +815,12 @@ mod tests {
             assert_eq!(e.parameter, "circle_splatting", "{toml}");
             assert!(e.to_string().contains("camera_samples"), "{e}");
         }
+        // The ground's splats need the air's.
+        let e = Scene::from_toml(
+            "[render.integrator]\ncircle_splatting = false\nground_splatting = true",
+        )
+        .unwrap_err();
+        assert_eq!(e.parameter, "ground_splatting");
         // Off, or unset, either is fine.
         let ok = "[render.integrator]\ncircle_splatting = false\ncamera_samples = 0";
         assert!(Scene::from_toml(ok).is_ok());

@@ -3,8 +3,8 @@
 //! [`Integrator::ground_bounce`]).
 
 use super::{
-    cosine_sample_hemisphere, ground_point, DVec3, GuideAt, Integrator, Lanes, Light, Rng,
-    SpectralLanes, PI,
+    cosine_sample_hemisphere, ground_point, DVec3, GuideAt, Integrator, Lanes, Light, Radiance,
+    Rng, SpectralLanes, PI,
 };
 
 impl<'a> Integrator<'a> {
@@ -31,6 +31,34 @@ impl<'a> Integrator<'a> {
                 radiance.total += *beta * lanes.ground_albedo / PI * cos * e_sun * tr;
             }
         }
+    }
+
+    /// The skylight the ground under unit `normal` reflects toward any
+    /// direction, (a/π) E, estimated by one bounce and its path, as a
+    /// camera path's ground branch estimates it (with the ground's control
+    /// variate where the plan has one): a ground splat's light
+    /// ([`super::super::ground_circles`]). The sun's direct light is not in
+    /// it.
+    pub(crate) fn ground_light(
+        &self,
+        normal: DVec3,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Radiance {
+        let mut radiance = Light::default();
+        let guide = self.bounce_guide(normal);
+        let Some((bounce, reflect)) = self.bounce_direction(normal, guide.as_ref(), rng) else {
+            return radiance.total;
+        };
+        let beta = Lanes::from_fn(|j| lanes.ground_albedo[j] * reflect);
+        self.ground_control(normal, bounce, &beta, lanes, &mut radiance, rng);
+        // Roulette plays on the weight relative to the bounce's start, as
+        // on a camera path's branch.
+        let start = beta[..lanes.active].iter().copied().fold(0.0, f64::max);
+        let split = if start > 0.0 { 1.0 / start } else { 1.0 };
+        let x = ground_point(self.medium, normal);
+        self.trace((x, bounce, 1, split), beta, lanes, &mut radiance, rng);
+        radiance.total
     }
 
     /// The sky guide at the ground point under unit `normal`, where the

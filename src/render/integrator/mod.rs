@@ -97,7 +97,11 @@
 //! film gets the light scattered again in the air from paths started
 //! anywhere in the visible air, each added to the pixels along its point's
 //! circle about the sun's axis ([`super::circles`],
-//! `Integrator::splat_walk`).
+//! `Integrator::splat_walk`). With `ground_splatting` (on wherever
+//! circle splatting is) the camera rays that meet the ground keep only its
+//! direct sunlight: the skylight it reflects comes from bounces at points
+//! anywhere on the visible ground, each added to the pixels along its
+//! point's circle ([`super::ground_circles`], `Integrator::ground_light`).
 //!
 //! **Alternative kept as an option** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`): `shadow_samples` estimates only
@@ -220,6 +224,9 @@ pub struct Integrator<'a> {
     /// Camera rays branch only from the ground: the light scattered more
     /// than once in the air reaches the film through [`super::circles`].
     splatting: bool,
+    /// Camera rays do not bounce off the ground they meet: the skylight it
+    /// reflects reaches the film through [`super::ground_circles`].
+    ground_splatting: bool,
     /// The aerosol phase function's Legendre moments k_0..k_L.
     aerosol_moments: MomentsOverWavelength<{ L_MAX + 1 }>,
     /// The Lambertian kernel's Legendre moments.
@@ -290,6 +297,7 @@ impl<'a> Integrator<'a> {
             guide: None,
             control: None,
             splatting: false,
+            ground_splatting: false,
             aerosol_moments: MomentsOverWavelength::new(&medium.aerosol_phase),
             lambert: super::control::lambert_moments(),
         }
@@ -313,10 +321,14 @@ impl<'a> Integrator<'a> {
     }
 
     /// Camera rays no longer branch from the air (only from the ground):
-    /// the film gets that light from [`super::circles`] instead.
+    /// the film gets that light from [`super::circles`] instead; nor, where
+    /// the plan splats the ground's skylight
+    /// ([`TechniquePlan::ground_splatting`]), from the ground, whose
+    /// reflected skylight comes from [`super::ground_circles`].
     #[must_use]
     pub(crate) fn with_circle_splatting(mut self) -> Self {
         self.splatting = true;
+        self.ground_splatting = self.plan.ground_splatting;
         self
     }
 

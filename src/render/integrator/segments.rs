@@ -105,7 +105,11 @@ impl<'a> Integrator<'a> {
         };
         // Where the path goes on: from the medium, from the ground, or not.
         let goes_on = depth + 1 < max_order;
-        let ground_goes_on = goes_on && span.hits_ground && self.medium.ground_albedo_max > 0.0;
+        // The camera ray's ground reflects skylight through its splats.
+        let ground_goes_on = goes_on
+            && span.hits_ground
+            && self.medium.ground_albedo_max > 0.0
+            && !(depth == 0 && self.ground_splatting);
         let p_medium = match (distribution, goes_on) {
             // The camera ray's light scattered again in the air is splatted.
             _ if depth == 0 && self.splatting => 0.0,
