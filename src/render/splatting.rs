@@ -8,6 +8,7 @@ use rayon::prelude::*;
 use super::circles::SPLATS_PER_WALK;
 use super::film_spectral::Splat;
 use super::ground_circles::GROUND_SPLATS;
+use super::medium::{Lanes, SpectralLanes, LANES};
 use super::{Film, Integrator, Renderer, Sampler};
 use crate::rng::{mix64, Rng, SOBOL_POINTS};
 use crate::spectrum::K_M;
@@ -112,30 +113,9 @@ impl Renderer {
                     let mut moments = Vec::with_capacity(CHUNK as usize);
                     let mut discarded = 0;
                     for walk in walks.clone() {
-                        // A key of their own per path (the pixels' streams
-                        // share one per sample: fine for one sample per
-                        // pixel, but paths splatted into one pixel must not
-                        // be related).
-                        let seed = self.scene.render.seed;
-                        let rng =
-                            Rng::for_sample(seed, (u64::from(pass) << 40) ^ walk, SPLAT_STREAM);
-                        // The pass's paths take the points of Sobol
-                        // sequences, one scrambled per pass and block of
-                        // SOBOL_POINTS: their wavelengths, points and first
-                        // directions are stratified across the pass.
-                        let mut rng = match integrator.plan.sampler {
-                            Sampler::Sobol => rng.with_sobol_prefix(
-                                seed ^ mix64(u64::from(pass)),
-                                SPLAT_STREAM ^ (walk / SOBOL_POINTS),
-                                (walk % SOBOL_POINTS) as u32,
-                            ),
-                            Sampler::Independent => rng,
-                        };
-                        let (lanes, pdfs) = self.sample_lanes(rng.uniform());
-                        let weights = std::array::from_fn(|j| {
-                            let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
-                            bar.map(|b| K_M * b / (pdfs[j] * n as f64))
-                        });
+                        let (mut rng, lanes, pdfs) =
+                            self.splat_walk_start(integrator, pass, SPLAT_STREAM, walk);
+                        let weights = self.xyz_weights(&lanes, pdfs);
                         let before = splats.len();
                         let walked = splatter.walk(
                             integrator,
@@ -146,13 +126,7 @@ impl Renderer {
                             &mut rng,
                             &mut splats,
                         );
-                        // The splats' lanes over their densities, as the
-                        // XYZ weights divide (for the spectral layer).
-                        for s in &mut splats[before..] {
-                            for (v, p) in s.lanes.values.iter_mut().zip(pdfs).take(n) {
-                                *v = (f64::from(*v) / (p * n as f64)) as f32;
-                            }
-                        }
+                        over_densities(&mut splats[before..], pdfs, n);
                         discarded += walked.discarded;
                         moments.extend(walked.moment);
                         // The ground's bounces, each a share of the walk's
@@ -161,24 +135,9 @@ impl Renderer {
                         for g in 0..ground.as_ref().map_or(0, |_| GROUND_WALKS_PER_WALK) {
                             let Some(ground) = ground else { break };
                             let index = walk * GROUND_WALKS_PER_WALK + g;
-                            let rng = Rng::for_sample(
-                                seed,
-                                (u64::from(pass) << 40) ^ index,
-                                GROUND_STREAM,
-                            );
-                            let mut rng = match integrator.plan.sampler {
-                                Sampler::Sobol => rng.with_sobol_prefix(
-                                    seed ^ mix64(u64::from(pass)),
-                                    GROUND_STREAM ^ (index / SOBOL_POINTS),
-                                    (index % SOBOL_POINTS) as u32,
-                                ),
-                                Sampler::Independent => rng,
-                            };
-                            let (lanes, pdfs) = self.sample_lanes(rng.uniform());
-                            let weights = std::array::from_fn(|j| {
-                                let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
-                                bar.map(|b| K_M * b / (pdfs[j] * n as f64))
-                            });
+                            let (mut rng, lanes, pdfs) =
+                                self.splat_walk_start(integrator, pass, GROUND_STREAM, index);
+                            let weights = self.xyz_weights(&lanes, pdfs);
                             let before = splats.len();
                             discarded += ground.walk(
                                 integrator,
@@ -189,11 +148,7 @@ impl Renderer {
                                 &mut rng,
                                 &mut splats,
                             );
-                            for s in &mut splats[before..] {
-                                for (v, p) in s.lanes.values.iter_mut().zip(pdfs).take(n) {
-                                    *v = (f64::from(*v) / (p * n as f64)) as f32;
-                                }
-                            }
+                            over_densities(&mut splats[before..], pdfs, n);
                         }
                     }
                     ChunkSplats {
@@ -215,5 +170,53 @@ impl Renderer {
         splatter.learn(&mut learned);
         film.learned_points = learned;
         (paths, discarded)
+    }
+
+    /// A splatted path's generator — a key of its own per path, `index` of
+    /// `stream` in pass `pass` (the pixels' streams share one per sample:
+    /// fine for one sample per pixel, but paths splatted into one pixel must
+    /// not be related), its first numbers from the pass's Sobol points, one
+    /// sequence scrambled per pass and block of `SOBOL_POINTS` (the paths'
+    /// wavelengths, points and first directions are stratified across the
+    /// pass) — and its wavelengths with their densities.
+    fn splat_walk_start(
+        &self,
+        integrator: &Integrator<'_>,
+        pass: u32,
+        stream: u64,
+        index: u64,
+    ) -> (Rng, SpectralLanes, Lanes) {
+        let seed = self.scene.render.seed;
+        let rng = Rng::for_sample(seed, (u64::from(pass) << 40) ^ index, stream);
+        let mut rng = match integrator.plan.sampler {
+            Sampler::Sobol => rng.with_sobol_prefix(
+                seed ^ mix64(u64::from(pass)),
+                stream ^ (index / SOBOL_POINTS),
+                (index % SOBOL_POINTS) as u32,
+            ),
+            Sampler::Independent => rng,
+        };
+        let (lanes, pdfs) = self.sample_lanes(rng.uniform());
+        (rng, lanes, pdfs)
+    }
+
+    /// What turns lane j's radiance into XYZ: K_m x̄ȳz̄(λ) over its density
+    /// and the lanes.
+    fn xyz_weights(&self, lanes: &SpectralLanes, pdfs: Lanes) -> [[f64; 3]; LANES] {
+        let n = self.lanes_per_path();
+        std::array::from_fn(|j| {
+            let bar = self.cmf.xyz_bar(lanes.wavelengths_nm[j]);
+            bar.map(|b| K_M * b / (pdfs[j] * n as f64))
+        })
+    }
+}
+
+/// The splats' lanes over their densities, as the XYZ weights divide (for
+/// the spectral layer).
+fn over_densities(splats: &mut [Splat], pdfs: Lanes, n: usize) {
+    for s in splats {
+        for (v, p) in s.lanes.values.iter_mut().zip(pdfs).take(n) {
+            *v = (f64::from(*v) / (p * n as f64)) as f32;
+        }
     }
 }
