@@ -15,10 +15,11 @@
 //!   the atmosphere (or go to space), without the disc.
 //!
 //! A camera sample goes to one layer by its own ray (`SampleSplit`). The
-//! splats of [`super::circles`] (light scattered more than once, shared
+//! splats of [`super::circles`] and [`super::ground_circles`] (light
+//! scattered more than once, and the skylight the ground reflects, shared
 //! between pixels) go with the ray through their pixel's centre: in the one
 //! row of pixels the horizon crosses, the ground and sky layers split that
-//! pixel's multiply scattered light by its centre, not sample by sample.
+//! pixel's splatted light by its centre, not sample by sample.
 //!
 //! The sums are [`ExactSum`]s like the beauty's: the sky's is the beauty's
 //! minus the other two, exactly, so it needs no memory of its own. The
