@@ -585,6 +585,20 @@ fn ground_splatting_leaves_the_ground_alone() {
 }
 
 #[test]
+fn an_observer_on_the_ground_keeps_the_cameras_bounces() {
+    // From altitude 0 no ground can be splatted on (no circle of it is
+    // seen from above): the camera's rays must keep their bounces, and the
+    // image is the one without ground splatting, bit for bit. Had the
+    // camera dropped its bounces regardless, the ground would lose its
+    // skylight.
+    let mut base = small("sunset", 16, 8, 3);
+    base.observer.altitude_m = 0.0;
+    let mut without = base.clone();
+    without.render.integrator.ground_splatting = Some(false);
+    assert_eq!(render(&base, 2), render(&without, 2));
+}
+
+#[test]
 fn thick_haze_at_sunset_renders_as_without_the_control_variate() {
     // At the top of the aerosol amount's range (100: optical depth 25 at
     // 550 nm), with the default g and with g at the top of its range, the

@@ -412,9 +412,11 @@ impl Renderer {
         }
         let integrator = self.integrator(pass);
         // Pixels the splats leave out (Camera::pixel_density_bounded) keep
-        // the camera's branches from the air.
-        let splatting = (self.plan.circle_splatting && pass > 0)
-            .then(|| self.integrator(pass).with_circle_splatting());
+        // the camera's branches from the air (and bounces off the ground).
+        let splatting = (self.plan.circle_splatting && pass > 0).then(|| {
+            self.integrator(pass)
+                .with_circle_splatting(self.ground_splatter().is_some())
+        });
         let (mut splat_paths, mut splat_discarded) = (0, 0);
         if let Some(splatting) = &splatting {
             (splat_paths, splat_discarded) = self.splat_pass(film, pass, splatting, cancelled);

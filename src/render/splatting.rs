@@ -7,7 +7,7 @@ use rayon::prelude::*;
 
 use super::circles::SPLATS_PER_WALK;
 use super::film_spectral::Splat;
-use super::ground_circles::GROUND_SPLATS;
+use super::ground_circles::{GroundSplatter, GROUND_SPLATS};
 use super::medium::{Lanes, SpectralLanes, LANES};
 use super::{Film, Integrator, Renderer, Sampler};
 use crate::rng::{mix64, Rng, SOBOL_POINTS};
@@ -78,18 +78,7 @@ impl Renderer {
         let Some(splatter) = splatter else {
             return (0, 0);
         };
-        let ground = self
-            .plan
-            .ground_splatting
-            .then(|| {
-                self.tables.ground_splatter(
-                    &self.medium,
-                    &self.integrator(1),
-                    &self.camera,
-                    self.observer_m,
-                )
-            })
-            .flatten();
+        let ground = self.ground_splatter();
         let paths_total =
             u64::from(film.width) * u64::from(film.height) * splat_paths_per_pixel(pass);
         let chunks = paths_total.div_ceil(CHUNK);
@@ -170,6 +159,23 @@ impl Renderer {
         splatter.learn(&mut learned);
         film.learned_points = learned;
         (paths, discarded)
+    }
+
+    /// The splatter of the ground's skylight where the plan splats it and
+    /// there is ground to splat on (`None` for an observer on the ground
+    /// or a black one: the camera's rays then keep their bounces).
+    pub(crate) fn ground_splatter(&self) -> Option<&GroundSplatter> {
+        self.plan
+            .ground_splatting
+            .then(|| {
+                self.tables.ground_splatter(
+                    &self.medium,
+                    &self.integrator(1),
+                    &self.camera,
+                    self.observer_m,
+                )
+            })
+            .flatten()
     }
 
     /// A splatted path's generator — a key of its own per path, `index` of

@@ -321,14 +321,14 @@ impl<'a> Integrator<'a> {
     }
 
     /// Camera rays no longer branch from the air (only from the ground):
-    /// the film gets that light from [`super::circles`] instead; nor, where
-    /// the plan splats the ground's skylight
-    /// ([`TechniquePlan::ground_splatting`]), from the ground, whose
-    /// reflected skylight comes from [`super::ground_circles`].
+    /// the film gets that light from [`super::circles`] instead; nor, with
+    /// `ground` (where the renderer splats the ground's skylight,
+    /// [`TechniquePlan::ground_splatting`]), from the ground, whose
+    /// reflected skylight then comes from [`super::ground_circles`].
     #[must_use]
-    pub(crate) fn with_circle_splatting(mut self) -> Self {
+    pub(crate) fn with_circle_splatting(mut self, ground: bool) -> Self {
         self.splatting = true;
-        self.ground_splatting = self.plan.ground_splatting;
+        self.ground_splatting = ground;
         self
     }
 
