@@ -458,12 +458,13 @@ mod tests {
     use crate::render::direction_from_az_el;
     use crate::scene::{CameraKind, CameraParams};
 
-    /// A sunset splatter for `camera_params` at `width` × `height`, and
-    /// its camera.
+    /// A sunset splatter for `camera_params` at `width` × `height` seen from
+    /// `altitude_m`, and its camera.
     fn sunset_splatter(
         camera_params: &CameraParams,
         width: u32,
         height: u32,
+        altitude_m: f64,
     ) -> (GroundSplatter, Camera) {
         let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
         let sun = direction_from_az_el(270.0, 2.0);
@@ -474,7 +475,7 @@ mod tests {
         let guide = SkyGuide::new(&medium, sun);
         let integrator = Integrator::new(&medium, &plan, sun).with_sky_guide(&guide);
         let camera = Camera::new(camera_params, width, height);
-        let observer = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2.0);
+        let observer = DVec3::new(0.0, 0.0, medium.planet_radius_m + altitude_m);
         let splatter =
             GroundSplatter::new(&medium, &integrator, Some(&guide), &camera, observer).unwrap();
         (splatter, camera)
@@ -525,7 +526,7 @@ mod tests {
 
     #[test]
     fn the_angles_density_is_normalised() {
-        let (splatter, _) = sunset_splatter(&CameraParams::default(), 32, 16);
+        let (splatter, _) = sunset_splatter(&CameraParams::default(), 32, 16, 2.0);
         assert!(!splatter.bins.is_empty());
         // ∫ p(u) du by the midpoint rule within each bin (p is constant
         // there) and over the uniform share.
@@ -544,44 +545,55 @@ mod tests {
         // the ground it sees: 1 where it sees only ground. Rows of an
         // equirect map from just below the horizon's to the last but one
         // (the bottom row, the pole's, takes no splats), the horizon's row
-        // at the share of it below the horizon's dip (√(2h/R)), and every
-        // pixel of a view looking down: each row's (pixel's) mean within
+        // at the share of it below the horizon's dip (arccos R/(R + h)),
+        // from 2 m and from 10 km, and every pixel of a view looking down: each row's (pixel's) mean within
         // 4 standard errors of it, which lie below 2 %. A Jacobian or a
         // density wrong by a factor anywhere in θ or ψ fails, and so does
         // a density that leaves some visible ground to its uniform share.
         let (width, height) = (32, 16);
-        let (splatter, camera) = sunset_splatter(&CameraParams::default(), width, height);
-        let (means, errors, largest) = coverage(&splatter, &camera, 200_000);
-        // No walk brings a pixel more than a few hundred times its share
-        // (a bin of the angles' table left empty brought 10⁶: fireflies).
-        assert!(largest < 1e3, "{largest}");
-        let dip_deg = (2.0 * 2.0 / splatter.axis.ground_m).sqrt().to_degrees();
-        let row_deg = 180.0 / f64::from(height);
-        for y in height / 2..height - 1 {
-            let row = (y * width) as usize..((y + 1) * width) as usize;
-            let mean = means[row.clone()].iter().sum::<f64>() / f64::from(width);
-            let error = errors[row].iter().map(|e| e * e).sum::<f64>().sqrt() / f64::from(width);
-            let expected = if y == height / 2 {
-                1.0 - dip_deg / row_deg
-            } else {
-                1.0
-            };
-            assert!(error < 0.02, "row {y}: standard error {error}");
-            assert!(
-                (mean - expected).abs() < 4.0 * error,
-                "row {y}: {mean} ± {error}, expected {expected}"
-            );
+        // From the ground and from an airliner (the table's scales follow
+        // the height; the horizon dips 3.2° at 10 km).
+        for altitude_m in [2.0, 10e3] {
+            let (splatter, camera) =
+                sunset_splatter(&CameraParams::default(), width, height, altitude_m);
+            let (means, errors, largest) = coverage(&splatter, &camera, 200_000);
+            // No walk brings a pixel more than a few hundred times its
+            // share (a bin of the angles' table left empty brought 10⁶:
+            // fireflies).
+            assert!(largest < 1e3, "{altitude_m} m: {largest}");
+            let r = splatter.axis.ground_m;
+            let dip_deg = (r / (r + altitude_m)).acos().to_degrees();
+            let row_deg = 180.0 / f64::from(height);
+            for y in height / 2..height - 1 {
+                let row = (y * width) as usize..((y + 1) * width) as usize;
+                let mean = means[row.clone()].iter().sum::<f64>() / f64::from(width);
+                let error =
+                    errors[row].iter().map(|e| e * e).sum::<f64>().sqrt() / f64::from(width);
+                let expected = if y == height / 2 {
+                    1.0 - dip_deg / row_deg
+                } else {
+                    1.0
+                };
+                assert!(
+                    error < 0.02,
+                    "{altitude_m} m, row {y}: standard error {error}"
+                );
+                assert!(
+                    (mean - expected).abs() < 4.0 * error,
+                    "{altitude_m} m, row {y}: {mean} ± {error}, expected {expected}"
+                );
+            }
+            assert!(means[((height - 1) * width) as usize..]
+                .iter()
+                .all(|&m| m == 0.0));
         }
-        assert!(means[((height - 1) * width) as usize..]
-            .iter()
-            .all(|&m| m == 0.0));
         let down = CameraParams {
             kind: CameraKind::Perspective,
             pitch_deg: -60.0,
             fov_deg: 60.0,
             ..CameraParams::default()
         };
-        let (splatter, camera) = sunset_splatter(&down, 8, 8);
+        let (splatter, camera) = sunset_splatter(&down, 8, 8, 2.0);
         let (means, errors, largest) = coverage(&splatter, &camera, 400_000);
         assert!(largest < 1e3, "{largest}");
         for (p, (mean, error)) in means.iter().zip(&errors).enumerate() {
