@@ -12,3 +12,11 @@ pub fn try_filled<T: Clone>(
     v.resize(n, value);
     Ok(v)
 }
+
+/// Whether `bytes` can be reserved now: a probe before a render commits
+/// to its buffers (the reservation is released at once).
+pub fn can_reserve(bytes: u64) -> bool {
+    usize::try_from(bytes)
+        .ok()
+        .is_some_and(|b| Vec::<u8>::new().try_reserve_exact(b).is_ok())
+}

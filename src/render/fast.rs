@@ -79,10 +79,7 @@ const BYTES_PER_PIXEL: u64 = 16;
 pub fn check_memory(scene: &Scene) -> Result<(), OutOfMemory> {
     let (width, height) = (scene.render.width, scene.render.height);
     let bytes = u64::from(width) * u64::from(height) * BYTES_PER_PIXEL;
-    let fits = usize::try_from(bytes)
-        .ok()
-        .is_some_and(|b| Vec::<u8>::new().try_reserve_exact(b).is_ok());
-    if fits {
+    if super::alloc::can_reserve(bytes) {
         Ok(())
     } else {
         Err(OutOfMemory {

@@ -82,11 +82,11 @@ impl Renderer {
     /// machine or its limits (`ulimit -v`) stops at once with a message
     /// rather than aborting when a buffer fails to allocate hours later.
     pub fn check_memory(&self) -> Result<(), OutOfMemory> {
-        let bytes =
-            usize::try_from(self.memory_needed_bytes()).map_err(|_| self.out_of_memory())?;
-        Vec::<u8>::new()
-            .try_reserve_exact(bytes)
-            .map_err(|_| self.out_of_memory())
+        if super::alloc::can_reserve(self.memory_needed_bytes()) {
+            Ok(())
+        } else {
+            Err(self.out_of_memory())
+        }
     }
 
     /// The error for this scene's render not fitting in memory.
