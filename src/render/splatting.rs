@@ -121,23 +121,24 @@ impl Renderer {
                         // The ground's bounces, each a share of the walk's
                         // unit (the film divides by walks), with their own
                         // generators and wavelengths.
-                        for g in 0..ground.as_ref().map_or(0, |_| GROUND_WALKS_PER_WALK) {
-                            let Some(ground) = ground else { break };
-                            let index = walk * GROUND_WALKS_PER_WALK + g;
-                            let (mut rng, lanes, pdfs) =
-                                self.splat_walk_start(integrator, pass, GROUND_STREAM, index);
-                            let weights = self.xyz_weights(&lanes, pdfs);
-                            let before = splats.len();
-                            discarded += ground.walk(
-                                integrator,
-                                &self.camera,
-                                &lanes,
-                                &weights,
-                                1.0 / GROUND_WALKS_PER_WALK as f64,
-                                &mut rng,
-                                &mut splats,
-                            );
-                            over_densities(&mut splats[before..], pdfs, n);
+                        if let Some(ground) = ground {
+                            for g in 0..GROUND_WALKS_PER_WALK {
+                                let index = walk * GROUND_WALKS_PER_WALK + g;
+                                let (mut rng, lanes, pdfs) =
+                                    self.splat_walk_start(integrator, pass, GROUND_STREAM, index);
+                                let weights = self.xyz_weights(&lanes, pdfs);
+                                let before = splats.len();
+                                discarded += ground.walk(
+                                    integrator,
+                                    &self.camera,
+                                    &lanes,
+                                    &weights,
+                                    1.0 / GROUND_WALKS_PER_WALK as f64,
+                                    &mut rng,
+                                    &mut splats,
+                                );
+                                over_densities(&mut splats[before..], pdfs, n);
+                            }
                         }
                     }
                     ChunkSplats {
