@@ -406,6 +406,15 @@ fn midday_zenith_luminance_is_683_times_the_radiance_under_y_bar() {
     );
 }
 
+/// The mean over seeds of band `band`'s means, and its variance (the
+/// seeds' spread over their number).
+fn band_stats(runs: &[[f64; 3]], band: usize) -> (f64, f64) {
+    let n = runs.len() as f64;
+    let mean = runs.iter().map(|m| m[band]).sum::<f64>() / n;
+    let var = runs.iter().map(|m| (m[band] - mean).powi(2)).sum::<f64>() / (n - 1.0);
+    (mean, var / n)
+}
+
 #[test]
 fn circle_splatting_leaves_the_sky_alone() {
     // The splats of `render::circles` carry the light scattered more than
@@ -459,13 +468,7 @@ fn circle_splatting_leaves_the_sky_alone() {
         };
         let (on, off) = (runs(true), runs(false));
         for band in 0..3 {
-            let stats = |v: &[[f64; 3]]| {
-                let n = v.len() as f64;
-                let mean = v.iter().map(|m| m[band]).sum::<f64>() / n;
-                let var = v.iter().map(|m| (m[band] - mean).powi(2)).sum::<f64>() / (n - 1.0);
-                (mean, var / n)
-            };
-            let ((m_on, v_on), (m_off, v_off)) = (stats(&on), stats(&off));
+            let ((m_on, v_on), (m_off, v_off)) = (band_stats(&on, band), band_stats(&off, band));
             let se = (v_on + v_off).sqrt();
             assert!(
                 (m_on - m_off).abs() < 4.0 * se,
@@ -561,13 +564,7 @@ fn ground_splatting_leaves_the_ground_alone() {
             if on[0][band].is_nan() {
                 continue;
             }
-            let stats = |v: &[[f64; 3]]| {
-                let n = v.len() as f64;
-                let mean = v.iter().map(|m| m[band]).sum::<f64>() / n;
-                let var = v.iter().map(|m| (m[band] - mean).powi(2)).sum::<f64>() / (n - 1.0);
-                (mean, var / n)
-            };
-            let ((m_on, v_on), (m_off, v_off)) = (stats(&on), stats(&off));
+            let ((m_on, v_on), (m_off, v_off)) = (band_stats(&on, band), band_stats(&off, band));
             let se = (v_on + v_off).sqrt();
             assert!(
                 (m_on - m_off).abs() < 4.0 * se,

@@ -71,7 +71,7 @@ impl Renderer {
         let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
         let splatter = self.tables.splatter(
             &self.medium,
-            &self.integrator(1),
+            || self.integrator(1),
             &self.camera,
             self.observer_m,
         );
@@ -171,7 +171,7 @@ impl Renderer {
             .then(|| {
                 self.tables.ground_splatter(
                     &self.medium,
-                    &self.integrator(1),
+                    || self.integrator(1),
                     &self.camera,
                     self.observer_m,
                 )

@@ -126,12 +126,13 @@ impl Tables {
     }
 
     /// The splatter along the circles about the sun's axis for `camera`
-    /// at `observer_m`, learned with `integrator` on first use; `None`
-    /// where there are no circles to splat along.
-    pub(crate) fn splatter(
+    /// at `observer_m`, learned on first use with the integrator that
+    /// `integrator` makes (only then); `None` where there are no circles
+    /// to splat along.
+    pub(crate) fn splatter<'i>(
         &self,
         medium: &Medium,
-        integrator: &Integrator<'_>,
+        integrator: impl FnOnce() -> Integrator<'i>,
         camera: &Camera,
         observer_m: DVec3,
     ) -> Option<&CircleSplatter> {
@@ -139,7 +140,7 @@ impl Tables {
             .get_or_init(|| {
                 CircleSplatter::new(
                     medium,
-                    integrator,
+                    &integrator(),
                     self.sky_guide.as_deref(),
                     camera,
                     observer_m,
@@ -149,12 +150,13 @@ impl Tables {
     }
 
     /// The splatter of the ground's skylight along the same circles
-    /// ([`GroundSplatter`]), built with `integrator` on first use; `None`
-    /// where there is nothing to splat.
-    pub(crate) fn ground_splatter(
+    /// ([`GroundSplatter`]), built on first use with the integrator that
+    /// `integrator` makes (only then); `None` where there is nothing to
+    /// splat.
+    pub(crate) fn ground_splatter<'i>(
         &self,
         medium: &Medium,
-        integrator: &Integrator<'_>,
+        integrator: impl FnOnce() -> Integrator<'i>,
         camera: &Camera,
         observer_m: DVec3,
     ) -> Option<&GroundSplatter> {
@@ -162,7 +164,7 @@ impl Tables {
             .get_or_init(|| {
                 GroundSplatter::new(
                     medium,
-                    integrator,
+                    &integrator(),
                     self.sky_guide.as_deref(),
                     camera,
                     observer_m,
