@@ -45,18 +45,21 @@ fn model_error(name: &str) -> f64 {
 
 #[test]
 fn the_model_is_within_its_measured_error_of_the_path_tracer() {
-    // The bounds are the errors measured at this size (midday 3.7 %,
-    // sunset 7.4 %, twilight 9.5 %, space 13.8 %, Mars at noon 15.4 %;
-    // BENCHMARKS.md) with room for the reference's noise. Mars's dust has
-    // a forward peak narrower than the tables' direction spacing: summed
-    // without care it made the low sky 1.8× too bright. The first Monte
-    // Carlo pass is off by 65–1100 %.
+    // The bounds are the errors measured at this size (midday 2.2 %,
+    // sunset 1.8 %, twilight 5.8 %, space 3.4 %, Mars at noon 8.0 %;
+    // BENCHMARKS.md) with room for the reference's noise. Before the
+    // march stepped densest at a ray's lowest point, and the sums over
+    // directions weighted each by its cell's phase function, these were
+    // 3.7, 7.4, 9.5, 13.8 and 15.4 %: the ground seen from orbit read
+    // 0.8–0.9×, and the Martian dust's forward peak, hit or missed from
+    // one view to the next, made the low sky twice too bright away from
+    // the sun. The first Monte Carlo pass is off by 65–1100 %.
     for (name, bound) in [
-        ("midday", 0.05),
-        ("sunset", 0.10),
-        ("twilight", 0.13),
-        ("space", 0.17),
-        ("mars-noon", 0.20),
+        ("midday", 0.035),
+        ("sunset", 0.035),
+        ("twilight", 0.08),
+        ("space", 0.05),
+        ("mars-noon", 0.11),
     ] {
         let error = model_error(name);
         eprintln!("{name}: model error {:.1} %", error * 100.0);
@@ -133,7 +136,8 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
     // The preview corrects the model by a quarter-size render
     // (render::preview): after its coarse passes the image must be far
     // nearer the converged passes than the model alone (midday at 128×64:
-    // the model 3.7 % off, corrected about 1 %).
+    // the model 2.0 % off, corrected about 1 %: the coarse passes' own
+    // noise and interpolation).
     use skyrender::render::preview::{Preview, PREVIEW_COARSE_PASSES};
     let mut scene = Scene::preset("midday").unwrap();
     scene.render.width = 128;
@@ -207,5 +211,8 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
         100.0 * after,
         100.0 * noise
     );
-    assert!(after < 0.4 * before, "{after} vs the model's {before}");
+    assert!(
+        after < 0.6 * before && after < 0.015,
+        "{after} vs the model's {before}"
+    );
 }

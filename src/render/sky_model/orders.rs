@@ -40,6 +40,13 @@ impl MsTable {
         };
         let directions = fibonacci_sphere(count);
         let weight = 4.0 * PI / count as f64;
+        // The phase functions averaged over each direction's cell: the
+        // sums below stand for integrals over the sphere, and a forward
+        // peak narrower than the directions' spacing would be hit or
+        // missed from one view to the next ([`Phases::averaged_over_cells`]).
+        // That holds for the once-scattered light arriving from each
+        // direction too (the aureole about the sun).
+        let cell_phases = optics.phases.averaged_over_cells(count);
         // Per solar zenith (the sun's direction, and so every phase
         // function value, is the same at each altitude): the altitudes' rows.
         let per_zenith: Vec<ZenithEntries> = (0..MS_ZENITHS)
@@ -58,14 +65,14 @@ impl MsTable {
                     .collect();
                 let to_sun: Vec<_> = directions
                     .iter()
-                    .map(|d| optics.phases(d.dot(sun)))
+                    .map(|d| cell_phases.at(d.dot(sun)))
                     .collect();
                 let to_view: Vec<Vec<_>> = views
                     .iter()
                     .map(|v| {
                         directions
                             .iter()
-                            .map(|d| optics.phases(d.dot(*v)))
+                            .map(|d| cell_phases.at(d.dot(*v)))
                             .collect()
                     })
                     .collect();
@@ -83,34 +90,14 @@ impl MsTable {
                         })
                     })
                     .collect();
-                // The zenith factors' sums take the phase functions capped
-                // at their value half a direction spacing from the forward
-                // peak: a peak narrower than the spacing makes a sum over
-                // the directions hit or miss it from one view to the next
-                // (the Martian dust's low sky came out 1.8× too bright),
-                // and the ν table, not the factor, holds the peak. A cap
-                // at a whole spacing cut the haze's broad forward lobe
-                // too (midday 3.8 → 5.2 % off).
-                let spacing_rad = (4.0 * PI / count as f64).sqrt();
-                let (cap_r, cap_a) = optics.phases((0.5 * spacing_rad).cos());
-                let capped = |(pr, pa): (Spectrum, Spectrum)| -> (Spectrum, Spectrum) {
-                    (
-                        std::array::from_fn(|n| pr[n].min(cap_r[n])),
-                        std::array::from_fn(|n| pa[n].min(cap_a[n])),
-                    )
-                };
                 let to_zenith_view: Vec<Vec<_>> = zenith_views
                     .iter()
                     .map(|(v, _)| {
                         directions
                             .iter()
-                            .map(|d| capped(optics.phases(d.dot(*v))))
+                            .map(|d| cell_phases.at(d.dot(*v)))
                             .collect()
                     })
-                    .collect();
-                let to_view_capped: Vec<Vec<_>> = to_view
-                    .iter()
-                    .map(|phases| phases.iter().map(|&p| capped(p)).collect())
                     .collect();
                 let rows: Vec<ZenithEntries> = (0..MS_ALTITUDES)
                     .map(|i| {
@@ -164,10 +151,9 @@ impl MsTable {
                                 })
                                 .collect::<Vec<[Spectrum; 2]>>()
                         };
-                        let (row, row_capped) = (nu_row(&to_view), nu_row(&to_view_capped));
+                        let row = nu_row(&to_view);
                         // Per view at a tabulated zenith and azimuth: J
-                        // there and the ν table at its angle to the sun,
-                        // both with the capped phase functions.
+                        // there and the ν table at its angle to the sun.
                         let factors = zenith_views
                             .iter()
                             .zip(&to_zenith_view)
@@ -181,7 +167,7 @@ impl MsTable {
                                 }
                                 let a = (*index as usize).min(MS_VIEW_ANGLES - 2);
                                 let f = index - a as f64;
-                                let (lo, hi) = (&row_capped[a], &row_capped[a + 1]);
+                                let (lo, hi) = (&row[a], &row[a + 1]);
                                 let table = std::array::from_fn(|x| {
                                     std::array::from_fn(|n| lo[x][n] + f * (hi[x][n] - lo[x][n]))
                                 });
@@ -316,7 +302,7 @@ impl SkyIrradiance {
 
 /// Scattering orders computed one by one ([`MsTable::scattered`]) past
 /// the first.
-const ORDERS: usize = 4;
+const ORDERS: usize = 5;
 
 /// The share of an order's light that the next one keeps, at most: past
 /// it the tail's sum ρ/(1 − ρ) is taken as this.
