@@ -136,8 +136,8 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
     // The preview corrects the model by a quarter-size render
     // (render::preview): after its coarse passes the image must be far
     // nearer the converged passes than the model alone (midday at 128×64:
-    // the model 2.0 % off, corrected about 1 %: the coarse passes' own
-    // noise and interpolation).
+    // the model 2.0 % off, corrected 0.6 %: the correction denoised by
+    // the coarse passes' spread; 1.0 % without).
     use skyrender::render::preview::{Preview, PREVIEW_COARSE_PASSES};
     let mut scene = Scene::preset("midday").unwrap();
     scene.render.width = 128;
@@ -212,7 +212,7 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
         100.0 * noise
     );
     assert!(
-        after < 0.6 * before && after < 0.015,
+        after < 0.4 * before && after < 0.01,
         "{after} vs the model's {before}"
     );
 }

@@ -107,7 +107,9 @@ pub fn compose(scene: &Scene, coarse: &Renderer, film: &Film) -> Result<RgbImage
 /// `scene` through `camera` (its own size), corrected by the passes on
 /// `film` of the coarse renderer `coarse`, whose own model image is
 /// `coarse_model`; `places`, where given, is [`places`] of `camera` in
-/// the coarse one (kept by a caller that composes again and again).
+/// the coarse one (kept by a caller that composes again and again). Where
+/// the coarse film keeps the `variance` layer (the preview's), the
+/// correction is denoised ([`Coarse::variance`]).
 pub fn correct(
     scene: &Scene,
     camera: &Camera,
@@ -122,11 +124,13 @@ pub fn correct(
         .try_layer_images()
         .map_err(|_| coarse.out_of_memory())?
         .map(|[_, sun, _]| sun);
+    let variance = film.variance_plane();
     let correction = Coarse {
         camera: coarse.camera(),
         passes: &passes.pixels,
         model: &coarse_model.pixels,
         disc: disc.as_deref(),
+        variance: variance.as_deref(),
         wraps: scene.camera.kind == CameraKind::Equirect,
         meets_ground: &|dir| coarse.meets_ground(dir),
     };
@@ -192,6 +196,11 @@ pub struct Coarse<'a> {
     pub model: &'a [[f32; 3]],
     /// The sun's disc in `passes` (its `sun` layer), if the render kept it.
     pub disc: Option<&'a [[f32; 3]]>,
+    /// The variance of each coarse pixel's mean luminance (the passes'
+    /// `variance` layer), where the correction is to be denoised (the
+    /// preview's, `render::denoise`); `None`: taken as it is (the fast mode's
+    /// export, whose bias is measured without it).
+    pub variance: Option<&'a [f32]>,
     /// Whether the image wraps around in x (the equirect map).
     pub wraps: bool,
     /// Whether the view ray along a direction meets the ground
@@ -297,6 +306,17 @@ impl Coarse<'_> {
             .into_par_iter()
             .map(|k| ground_share(self.camera, k % cw, k / cw, self.meets_ground))
             .collect();
+        let residual = match self.variance {
+            Some(variance) => {
+                // The sun's disc is sampled apart and its pixels' spread is
+                // the disc's: they take no part in the statistics.
+                let shares: Vec<Option<f64>> = (0..cw * ch)
+                    .map(|k| shares[k].filter(|_| self.disc.is_none_or(|d| d[k][1] <= 0.0)))
+                    .collect();
+                super::denoise::denoised(&residual, variance, &shares, (cw, ch), self.wraps)
+            }
+            None => residual,
+        };
         let width = model.width as usize;
         model
             .pixels
@@ -505,6 +525,7 @@ mod tests {
             passes,
             model: &zeros,
             disc: None,
+            variance: None,
             wraps: true,
             meets_ground,
         };
@@ -645,6 +666,7 @@ mod tests {
             passes: &disc,
             model: &zeros,
             disc: Some(&disc),
+            variance: None,
             wraps: true,
             meets_ground: &below,
         };

@@ -2,14 +2,15 @@
 //! approximate sky model first ([`super::sky_model`], tens of
 //! milliseconds), then the model corrected by a coarse Monte Carlo render
 //! (the fast mode's image, [`super::fast`], at a quarter of the width and
-//! height: each coarse pass costs a sixteenth of a full one), then the
+//! height: each coarse pass costs a sixteenth of a full one; its
+//! correction denoised by the passes' spread, `fast::denoised`), then the
 //! full-size passes, blended with the corrected model until their noise
 //! falls below its error ([`model_weight_with`]). The finished image is
 //! the passes alone: only the preview ever shows the model.
 //!
 //! A full pass at sunset takes seconds on two cores; the model alone is
-//! 4–14 % off; corrected, about 1 % by day two seconds after a change and
-//! 4–6 % at low sun and from orbit (`BENCHMARKS.md`).
+//! 1–11 % off; corrected, two seconds after a change, about 0.5 % by day,
+//! 1 % from orbit and 3 % at twilight and on Mars (`BENCHMARKS.md`).
 
 use std::time::{Duration, Instant};
 
@@ -19,8 +20,8 @@ use crate::output::RgbImage;
 use crate::spectrum::rec709_luminance;
 
 /// The sky model's typical RMS error over a whole image, relative to its
-/// mean luminance: 3–12 % over the bench's scenes (`BENCHMARKS.md`, "The
-/// preview's first frame").
+/// mean luminance: 1–11 % over the bench's scenes (`BENCHMARKS.md`, "The
+/// sky model's first frame"); the blend's weight takes the larger.
 pub const MODEL_ERROR: f64 = 0.1;
 
 /// See [`model_weight`]: a pixel of the passes this many times the model's
@@ -216,7 +217,11 @@ impl<'a> Preview<'a> {
             scene.render.fast_scale = PREVIEW_SCALE;
             // The coarse scene is the valid scene at a smaller size: should
             // it still be refused, the preview goes on without it.
-            let Ok(renderer) = Renderer::new(&fast::coarse_scene(&scene)) else {
+            let mut coarse_scene = fast::coarse_scene(&scene);
+            // The passes' spread per pixel, by which the correction is
+            // denoised (fast::denoised).
+            coarse_scene.output.layers.push("variance".into());
+            let Ok(renderer) = Renderer::new(&coarse_scene) else {
                 self.coarse_done = true;
                 return None;
             };
