@@ -29,7 +29,12 @@ pub(super) fn denoised(
     size: (usize, usize),
     wraps: bool,
 ) -> Vec<[f32; 3]> {
-    let part = |k: usize| shares[k].map(|g| g > 0.5);
+    // A pixel with no finite variance (or correction) is taken as it is.
+    let part = |k: usize| {
+        shares[k]
+            .filter(|_| variance[k].is_finite() && residual[k].iter().all(|v| v.is_finite()))
+            .map(|g| g > 0.5)
+    };
     let mut out = residual.to_vec();
     for ground in [false, true] {
         let members: Vec<usize> = (0..size.0 * size.1)
@@ -120,7 +125,7 @@ impl Grid<'_> {
             detail2 += d * d;
             detail_noise += vk * (1.0 - 1.0 / n).powi(2) + (v - vk) / (n * n);
         }
-        let lambda = if detail2 > 0.0 {
+        let lambda = if detail2 > 0.0 && detail2.is_finite() {
             (1.0 - detail_noise / detail2).clamp(0.0, 1.0)
         } else {
             0.0
@@ -139,7 +144,7 @@ impl Grid<'_> {
                 out
             })
             .collect();
-        let mu = if sum2 > 0.0 {
+        let mu = if sum2 > 0.0 && sum2.is_finite() {
             (1.0 - noise / sum2).clamp(0.0, 1.0)
         } else {
             0.0
@@ -211,5 +216,13 @@ mod tests {
         let step = |k: usize| if k / cw < 16 { 2.0 } else { -1.0 };
         let (before, after) = error(&step);
         assert!(after < 0.6 * before && after < 0.5, "{before} {after}");
+        // A pixel of infinite variance (a firefly's) is taken as it is and
+        // spoils nothing.
+        let mut wild = variance.clone();
+        wild[100] = f32::INFINITY;
+        let residual = vec![[1.0_f32; 3]; cw * ch];
+        let out = denoised(&residual, &wild, &shares, (cw, ch), true);
+        assert!(out.iter().flatten().all(|v| v.is_finite()));
+        assert_eq!(out[100], [1.0; 3]);
     }
 }
