@@ -11,11 +11,15 @@
 //! resolution, M, the Monte Carlo image P_c at the image's width and
 //! height over `fast_scale`, the model there too, M_c, and shows
 //!
-//!   I = M + up(P_c − M_c),
+//!   I = M + Y(M) up((P_c − M_c) / Y(M_c)),
 //!
 //! `up` the bilinear interpolation of the coarse image at each pixel's
 //! centre, placed through the coarse camera's own projection (so every
-//! camera maps; the equirect map wraps in azimuth). P_c is the reference
+//! camera maps; the equirect map wraps in azimuth), Y the model's
+//! luminance (at least a thousandth of its mean): the model is off by a
+//! share of the light, and where the light changes fast (the twilight
+//! glow over the horizon) an interpolated difference would smear the
+//! coarse pixels' light over the fine ones. P_c is the reference
 //! renderer's, pixel for pixel, so I converges as its passes do — to the
 //! reference up to the interpolation of the model's error, which vanishes
 //! as the coarse resolution reaches the image's. The work per pixel is the
@@ -45,6 +49,7 @@ use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
 use crate::physics::sun;
 use crate::scene::{CameraKind, RenderMode, Scene};
+use crate::spectrum::rec709_luminance;
 
 /// Positions per axis at which a pixel's share of the solar disc, or of
 /// the ground, is counted.
@@ -269,7 +274,8 @@ fn ground_share(
 
 impl Coarse<'_> {
     /// `model` (the model's image through `camera`) plus the interpolated
-    /// correction P_c − M_c, plus the disc of the sun at `sun_direction`.
+    /// correction (P_c − M_c, relative to M_c's luminance, times the
+    /// pixel's), plus the disc of the sun at `sun_direction`.
     ///
     /// The correction jumps at the horizon (and the limb from orbit): the
     /// model's error over the ground is not its error in the sky. So the
@@ -317,6 +323,26 @@ impl Coarse<'_> {
             }
             None => residual,
         };
+        // The correction relative to the model's luminance, interpolated,
+        // then times the fine pixel's: where the model is off by a share
+        // of the light (its usual error) and the light changes fast (the
+        // twilight glow over the horizon, the limb), an interpolated
+        // difference smears the coarse pixels' light over the fine ones,
+        // a share does not. Where the model is dark the scale stops at a
+        // thousandth of its mean, and the correction is a difference as
+        // before; with no model light at all it is one everywhere.
+        let y = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
+        let mean = self.model.iter().map(|&p| y(p).max(0.0)).sum::<f64>() / (cw * ch) as f64;
+        let floor = 1e-3 * mean;
+        let scale = |p: [f32; 3]| if floor > 0.0 { y(p).max(floor) } else { 1.0 };
+        let relative: Vec<[f32; 3]> = residual
+            .iter()
+            .zip(self.model)
+            .map(|(r, &m)| {
+                let s = scale(m);
+                r.map(|v| (f64::from(v) / s) as f32)
+            })
+            .collect();
         let width = model.width as usize;
         model
             .pixels
@@ -327,7 +353,11 @@ impl Coarse<'_> {
                     let Some(p) = place_of(y * width + x) else {
                         continue;
                     };
-                    let at = |only: Part| self.interpolate(&residual, &shares, only, p.gx, p.gy);
+                    let s = scale(*pixel) as f32;
+                    let at = |only: Part| {
+                        self.interpolate(&relative, &shares, only, p.gx, p.gy)
+                            .map(|v| v * s)
+                    };
                     let r = match p.ground {
                         g if g <= 0.0 => at(Part::Sky),
                         g if g >= 1.0 => at(Part::Ground),
