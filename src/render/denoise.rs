@@ -29,24 +29,27 @@ pub(super) fn denoised(
     size: (usize, usize),
     wraps: bool,
 ) -> Vec<[f32; 3]> {
-    // A pixel with no finite variance (or correction) is taken as it is.
-    let part = |k: usize| {
-        shares[k]
-            .filter(|_| variance[k].is_finite() && residual[k].iter().all(|v| v.is_finite()))
-            .map(|g| g > 0.5)
+    // Per pixel: ground (true) or sky; a pixel with no finite variance
+    // (or correction) is taken as it is.
+    let parts: Vec<Option<bool>> = (0..size.0 * size.1)
+        .map(|k| {
+            shares[k]
+                .filter(|_| variance[k].is_finite() && residual[k].iter().all(|v| v.is_finite()))
+                .map(|g| g > 0.5)
+        })
+        .collect();
+    let grid = Grid {
+        residual,
+        variance,
+        parts: &parts,
+        size,
+        wraps,
     };
     let mut out = residual.to_vec();
     for ground in [false, true] {
-        let members: Vec<usize> = (0..size.0 * size.1)
-            .filter(|&k| part(k) == Some(ground))
+        let members: Vec<usize> = (0..parts.len())
+            .filter(|&k| parts[k] == Some(ground))
             .collect();
-        let grid = Grid {
-            residual,
-            variance,
-            part: &part,
-            size,
-            wraps,
-        };
         let best = (1..=3)
             .map(|radius| grid.shrunk(&members, radius))
             .min_by(|a, b| a.risk.total_cmp(&b.risk));
@@ -63,7 +66,8 @@ pub(super) fn denoised(
 struct Grid<'a> {
     residual: &'a [[f32; 3]],
     variance: &'a [f32],
-    part: &'a dyn Fn(usize) -> Option<bool>,
+    /// Per pixel: ground, sky, or left out ([`denoised`]).
+    parts: &'a [Option<bool>],
     size: (usize, usize),
     wraps: bool,
 }
@@ -81,7 +85,7 @@ impl Grid<'_> {
     /// part), their count and their summed variance.
     fn neighbours(&self, k: usize, radius: i64) -> ([f64; 3], f64, f64) {
         let (cw, ch) = (self.size.0 as i64, self.size.1 as i64);
-        let p = (self.part)(k);
+        let p = self.parts[k];
         let (x, y) = (k as i64 % cw, k as i64 / cw);
         let (mut sum, mut n, mut v) = ([0.0; 3], 0.0, 0.0);
         for dy in -radius..=radius {
@@ -92,7 +96,7 @@ impl Grid<'_> {
                     continue;
                 }
                 let j = (ny * cw + nx) as usize;
-                if (self.part)(j) == p {
+                if self.parts[j] == p {
                     for (s, r) in sum.iter_mut().zip(self.residual[j]) {
                         *s += f64::from(r);
                     }

@@ -179,7 +179,7 @@ impl Optics<'_> {
 /// midpoints there miss most of the haze (the sum of a convex exponential
 /// at midpoints falls short of its integral), and the ground seen from
 /// orbit read 0.8–0.9× the path tracer's.
-fn step_ends(t_enter: f64, t_exit: f64, t_perigee: f64, steps: usize) -> Vec<f64> {
+fn step_ends(t_enter: f64, t_exit: f64, t_perigee: f64, steps: usize) -> impl Iterator<Item = f64> {
     let t_low = t_perigee.clamp(t_enter, t_exit);
     let (before, after) = (t_low - t_enter, t_exit - t_low);
     let length = before + after;
@@ -191,20 +191,17 @@ fn step_ends(t_enter: f64, t_exit: f64, t_perigee: f64, steps: usize) -> Vec<f64
         }
     };
     let (n_before, n_after) = (share(before), share(after));
-    let mut ends = Vec::with_capacity(n_before + n_after);
     // Toward the lowest point: the steps' far ends from the entry on.
-    for s in 1..=n_before {
-        let u = (n_before - s) as f64 / n_before as f64;
-        ends.push(if s == n_before {
+    let toward = (1..=n_before).map(move |s| {
+        if s == n_before {
             t_low
         } else {
+            let u = (n_before - s) as f64 / n_before as f64;
             t_low - before * u * u
-        });
-    }
-    for s in 1..=n_after {
-        ends.push(t_low + after * (s as f64 / n_after as f64).powi(2));
-    }
-    ends
+        }
+    });
+    let away = (1..=n_after).map(move |s| t_low + after * (s as f64 / n_after as f64).powi(2));
+    toward.chain(away)
 }
 
 /// Samples of [`Phases`].
@@ -623,7 +620,7 @@ mod tests {
             (0.0, 2_000_000.0, 1_000_000.0),   // the limb, tangent midway
             (0.0, 100_000.0, -5.0),            // the ground looking up
         ] {
-            let ends = step_ends(t_enter, t_exit, t_perigee, 32);
+            let ends: Vec<f64> = step_ends(t_enter, t_exit, t_perigee, 32).collect();
             assert!((31..=33).contains(&ends.len()));
             assert_eq!(*ends.last().unwrap(), t_exit);
             let mut starts = vec![t_enter];

@@ -26,8 +26,19 @@ impl MsTable {
     /// The light scattered once more than `previous`'s: from the sunlight
     /// scattered once (and the sunlit ground) without it, else from the
     /// light of the previous order (its table J_n, and the ground lit by
-    /// the sky of the order before, E_{n−1}).
-    fn scattered(optics: &Optics<'_>, previous: Option<(&MsTable, &SkyIrradiance)>) -> Self {
+    /// the sky of the order before, E_{n−1}). `cells` are the phase
+    /// functions averaged over the cells of the sum's directions
+    /// ([`Phases::averaged_over_cells`] of [`MS_DIRECTIONS`] for the
+    /// first, [`MS_DIRECTIONS_HIGHER`] after): the sums below stand for
+    /// integrals over the sphere, and a forward peak narrower than the
+    /// directions' spacing would be hit or missed from one view to the
+    /// next. That holds for the once-scattered light arriving from each
+    /// direction too (the aureole about the sun).
+    fn scattered(
+        optics: &Optics<'_>,
+        previous: Option<(&MsTable, &SkyIrradiance)>,
+        cell_phases: &Phases,
+    ) -> Self {
         let medium = optics.medium;
         let (planet_radius_m, top_m) = (
             medium.planet_radius_m,
@@ -40,13 +51,6 @@ impl MsTable {
         };
         let directions = fibonacci_sphere(count);
         let weight = 4.0 * PI / count as f64;
-        // The phase functions averaged over each direction's cell: the
-        // sums below stand for integrals over the sphere, and a forward
-        // peak narrower than the directions' spacing would be hit or
-        // missed from one view to the next ([`Phases::averaged_over_cells`]).
-        // That holds for the once-scattered light arriving from each
-        // direction too (the aureole about the sun).
-        let cell_phases = optics.phases.averaged_over_cells(count);
         // Per solar zenith (the sun's direction, and so every phase
         // function value, is the same at each altitude): the altitudes' rows.
         let per_zenith: Vec<ZenithEntries> = (0..MS_ZENITHS)
@@ -321,7 +325,9 @@ const MAX_ORDER_RATIO: f64 = 0.9;
 /// a fifth of it there.
 fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
     // J₂ from the once-scattered light; E₁ of the once-scattered sky.
-    let mut table = MsTable::scattered(optics, None);
+    let first_cells = optics.phases.averaged_over_cells(MS_DIRECTIONS);
+    let higher_cells = optics.phases.averaged_over_cells(MS_DIRECTIONS_HIGHER);
+    let mut table = MsTable::scattered(optics, None, &first_cells);
     let mut sky = SkyIrradiance::scattered(optics, None);
     let (mut psi, mut irradiance) = (table.clone(), sky.clone());
     let (mut last_table, mut last_sky) = (table.clone(), sky.clone());
@@ -329,7 +335,7 @@ fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
         // E_n from J_n, then J_{n+1} from L_n (J_n and the ground lit by
         // E_{n−1}).
         let next_sky = SkyIrradiance::scattered(optics, Some(&table));
-        let next_table = MsTable::scattered(optics, Some((&table, &sky)));
+        let next_table = MsTable::scattered(optics, Some((&table, &sky)), &higher_cells);
         for (sum, v) in psi.numbers_mut().zip(next_table.numbers()) {
             *sum += v;
         }
