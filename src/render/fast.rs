@@ -331,10 +331,21 @@ impl Coarse<'_> {
         // a share does not. Where the model is dark the scale stops at a
         // thousandth of its mean, and the correction is a difference as
         // before; with no model light at all it is one everywhere.
-        let y = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
-        let mean = self.model.iter().map(|&p| y(p).max(0.0)).sum::<f64>() / (cw * ch) as f64;
+        let luminance = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
+        let mean = self
+            .model
+            .iter()
+            .map(|&p| luminance(p).max(0.0))
+            .sum::<f64>()
+            / (cw * ch) as f64;
         let floor = 1e-3 * mean;
-        let scale = |p: [f32; 3]| if floor > 0.0 { y(p).max(floor) } else { 1.0 };
+        let scale = |p: [f32; 3]| {
+            if floor > 0.0 {
+                luminance(p).max(floor)
+            } else {
+                1.0
+            }
+        };
         let relative: Vec<[f32; 3]> = residual
             .iter()
             .zip(self.model)
