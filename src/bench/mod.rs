@@ -162,7 +162,8 @@ fn first_frame_scene(name: &str, scene: &Scene) -> Scene {
 /// atmosphere's tables kept from the call before (as in the app after a
 /// change of sun, camera or size). Returns (total ms, set-up ms, ms with
 /// the tables made anew), the first two medians of `repeats`.
-fn first_frame_ms(scene: &Scene, repeats: usize) -> Result<(f64, f64, f64), String> {
+fn first_frame_ms(scene: &Scene, repeats: usize) -> Result<FirstFrameMs, String> {
+    use crate::render::sky_model::{forget_shared_tables, keep_shared_tables_on_disk};
     let time = || -> Result<(f64, f64), String> {
         let start = Instant::now();
         let renderer = Renderer::new(scene).map_err(|e| e.to_string())?;
@@ -173,8 +174,18 @@ fn first_frame_ms(scene: &Scene, repeats: usize) -> Result<(f64, f64, f64), Stri
             setup.as_secs_f64() * 1e3,
         ))
     };
-    crate::render::sky_model::forget_shared_tables();
-    let (cold, _) = time()?;
+    // Made anew: nothing read from disk.
+    keep_shared_tables_on_disk(false);
+    forget_shared_tables();
+    let cold = time();
+    keep_shared_tables_on_disk(true);
+    let (cold_ms, _) = cold?;
+    // Read from disk: made and written once first (where the disk takes
+    // them; else this is made anew too).
+    forget_shared_tables();
+    time()?;
+    forget_shared_tables();
+    let (disk_ms, _) = time()?;
     let mut totals = Vec::with_capacity(repeats);
     let mut setups = Vec::with_capacity(repeats);
     for _ in 0..repeats {
@@ -182,7 +193,24 @@ fn first_frame_ms(scene: &Scene, repeats: usize) -> Result<(f64, f64, f64), Stri
         totals.push(total);
         setups.push(setup);
     }
-    Ok((median(&mut totals), median(&mut setups), cold))
+    Ok(FirstFrameMs {
+        kept: median(&mut totals),
+        setup: median(&mut setups),
+        cold: cold_ms,
+        disk: disk_ms,
+    })
+}
+
+/// The first frame's times ([`first_frame_ms`]), in milliseconds.
+struct FirstFrameMs {
+    /// Median, the model's tables kept in memory.
+    kept: f64,
+    /// Median of the renderer's set-up alone.
+    setup: f64,
+    /// The tables made anew.
+    cold: f64,
+    /// The tables read from disk.
+    disk: f64,
 }
 
 fn median(values: &mut [f64]) -> f64 {
@@ -261,7 +289,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         eprintln!("bench: {name}: {budget_s} s on {threads} thread(s)");
         let run = pool.install(|| measure_noise(scene, budget_s, seed))?;
         let ff_scene = first_frame_scene(name, scene);
-        let (first_ms, setup_ms, cold_ms) = pool.install(|| first_frame_ms(&ff_scene, repeats))?;
+        let first = pool.install(|| first_frame_ms(&ff_scene, repeats))?;
         let target = noise_target(name);
         let time_to_target = target.map(|t| time_to_noise(run.noise, run.seconds, t));
         results.push(SceneResult {
@@ -271,7 +299,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             budget_s,
             time_to_2pct_s: time_to_noise(run.noise, run.seconds, 0.02),
             time_to_1pct_s: time_to_noise(run.noise, run.seconds, 0.01),
-            first_frame_ms: first_ms,
+            first_frame_ms: first.kept,
             threads,
             noise_ground_at_budget: run.noise_ground,
             noise_whole_at_budget: run.noise_whole,
@@ -302,8 +330,9 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             spectral_samples_per_s: run.paths_per_s() * wavelengths as f64,
             first_frame_width: ff_scene.render.width,
             first_frame_height: ff_scene.render.height,
-            first_frame_setup_ms: setup_ms,
-            first_frame_cold_ms: cold_ms,
+            first_frame_setup_ms: first.setup,
+            first_frame_cold_ms: first.cold,
+            first_frame_disk_ms: first.disk,
             noise_target: target,
             time_to_target_s: time_to_target,
             target_met: time_to_target
@@ -392,7 +421,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         format!(
             "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
-        "first_frame_ms: median of Renderer::new + the sky model's image at the app's default preview size (320x160), the model's tables for the atmosphere kept from before: what the app shows first after a change of sun, camera or size; details.first_frame_cold_ms: the same with the tables made anew (the app's start, a change of atmosphere)".into(),
+        "first_frame_ms: median of Renderer::new + the sky model's image at the app's default preview size (320x160), the model's tables for the atmosphere kept from before: what the app shows first after a change of sun, camera or size; details.first_frame_cold_ms: the same with the tables made anew (the app's first start, a new atmosphere); details.first_frame_disk_ms: with them read from the disk's cache (a later start, an atmosphere seen before)".into(),
         "fast: the fast mode (render --mode fast) at fast_scale 2 and 4 (coarse renders of 128x64 and 64x32), two images (seeds + 3, + 4) of budget/2 each; bias: RMS of their mean minus the reference (the mean of A and B) over the whole image relative to the reference's mean, both noises removed in quadrature; time_to_1pct_4k_s: a 4096x2048 export at the default scale 8 (512x256 coarse), extrapolated from the coarse render's noise (time ∝ coarse pixels) plus composing (∝ pixels)".into(),
         "CPU share: CPU time of this process / (wall time x threads) while rendering; below 100 % means other processes took cores (throughput and noise at budget then understate the renderer)".into(),
     ];

@@ -67,9 +67,10 @@ use crate::spectrum::{xyz_to_rec709, ColourMatching, K_M};
 
 mod optics;
 mod orders;
+mod stored;
 
 use optics::{node_wavelength, Optics, Sources, Spectrum, NODES};
-pub use orders::{forget_shared_tables, ModelTables};
+pub use orders::{forget_shared_tables, keep_shared_tables_on_disk, ModelTables};
 
 /// Steps of a view ray's march.
 const VIEW_STEPS: usize = 32;

@@ -4,7 +4,10 @@
 //! one atmosphere kept for the next renderer of the same optics.
 
 use std::f64::consts::PI;
-use std::sync::{Arc, Mutex};
+use std::path::PathBuf;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, OnceLock};
+use std::thread::JoinHandle;
 
 use glam::DVec3;
 use rayon::prelude::*;
@@ -15,6 +18,7 @@ use super::optics::{
     Spectrum, GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_HIGHER, MS_VIEW_ANGLES,
     MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES, TABLE_STEPS, TABLE_STEPS_HIGHER,
 };
+use super::stored;
 use crate::render::lanes::LaneTable;
 use crate::render::medium::{Lanes, Medium, SpectralLanes, LANES};
 
@@ -371,6 +375,9 @@ fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
     for (sum, (&last, &before)) in irradiance.values.iter_mut().flatten().zip(sky_pairs) {
         *sum += tail(last, before);
     }
+    // The sums only made the factors; the tables read from disk have
+    // none either.
+    psi.zenith_sums = Vec::new();
     (psi, irradiance)
 }
 
@@ -392,25 +399,33 @@ impl ModelTables {
     /// The tables of `medium` at the wavelengths of `lane_table`'s
     /// constants.
     pub fn new(medium: &Medium, lane_table: &LaneTable) -> Self {
-        Self::made(medium, lane_table, fingerprint(medium, lane_table))
+        Self::made(medium, lane_table, fingerprint(medium, lane_table), None)
     }
 
-    /// [`Self::new`], its fingerprint already taken.
-    fn made(medium: &Medium, lane_table: &LaneTable, fingerprint: Vec<f64>) -> Self {
+    /// [`Self::new`], its fingerprint already taken; Ψ and the sky's
+    /// irradiance `stored` where they were read back ([`stored::load`]).
+    fn made(
+        medium: &Medium,
+        lane_table: &LaneTable,
+        fingerprint: Vec<f64>,
+        stored: Option<(MsTable, SkyIrradiance)>,
+    ) -> Self {
         let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
         let groups: Vec<SpectralLanes> = nodes
             .chunks(LANES)
             .map(|w| lane_table.lanes(Lanes::from_fn(|j| w[j]), LANES, medium))
             .collect();
         let phases = Phases::new(medium, &groups);
-        let optics = Optics {
-            medium,
-            groups: &groups,
-            phases: &phases,
-            // Each table sets its own sun per solar zenith.
-            sun_direction: DVec3::Z,
-        };
-        let (ms, sky) = scattering_orders(&optics);
+        let (ms, sky) = stored.unwrap_or_else(|| {
+            let optics = Optics {
+                medium,
+                groups: &groups,
+                phases: &phases,
+                // Each table sets its own sun per solar zenith.
+                sun_direction: DVec3::Z,
+            };
+            scattering_orders(&optics)
+        });
         Self {
             groups,
             phases,
@@ -429,46 +444,107 @@ impl ModelTables {
     }
 }
 
-/// The last tables made, kept for the next renderer of the same optics.
+/// The last tables made, kept for the next renderer of the same optics,
+/// and every table made kept on disk ([`stored`]) for the next process.
 struct TableCache {
     last: Mutex<Option<Arc<ModelTables>>>,
+    /// The folder of the files, resolved on first use; `None`: none kept.
+    folder: OnceLock<Option<PathBuf>>,
+    /// Whether files are read and written.
+    on_disk: AtomicBool,
+    /// The write of the last tables made, done beside the render.
+    writing: Mutex<Option<JoinHandle<()>>>,
 }
 
 impl TableCache {
+    /// A cache keeping its files where [`stored::default_folder`] says.
     const fn new() -> Self {
         Self {
             last: Mutex::new(None),
+            folder: OnceLock::new(),
+            on_disk: AtomicBool::new(true),
+            writing: Mutex::new(None),
         }
+    }
+
+    /// A cache keeping its files in `folder` (`None`: none).
+    #[cfg(test)]
+    fn in_folder(folder: Option<PathBuf>) -> Self {
+        let cache = Self::new();
+        let _ = cache.folder.set(folder);
+        cache
+    }
+
+    /// The folder of the files, if they are kept.
+    fn folder(&self) -> Option<&PathBuf> {
+        if !self.on_disk.load(Ordering::Relaxed) {
+            return None;
+        }
+        self.folder.get_or_init(stored::default_folder).as_ref()
     }
 
     /// See [`ModelTables::shared`].
     fn get(&self, medium: &Medium, lane_table: &LaneTable) -> Arc<ModelTables> {
         let key = fingerprint(medium, lane_table);
-        let mut last = self.lock();
+        let mut last = lock(&self.last);
         if let Some(tables) = last.as_ref().filter(|t| t.fingerprint == key) {
             return Arc::clone(tables);
         }
-        let tables = Arc::new(ModelTables::made(medium, lane_table, key));
+        let folder = self.folder().cloned();
+        let radii = (
+            medium.planet_radius_m,
+            medium.top_radius_m - medium.planet_radius_m,
+        );
+        let read = folder.as_ref().and_then(|f| stored::load(f, &key, radii));
+        let made_here = read.is_none();
+        let tables = Arc::new(ModelTables::made(medium, lane_table, key, read));
         *last = Some(Arc::clone(&tables));
+        if let Some(folder) = folder.filter(|_| made_here) {
+            // Beside the render: its first frame does not wait on the disk.
+            let kept = Arc::clone(&tables);
+            let write = std::thread::spawn(move || {
+                // Best effort: without the file the next process makes
+                // the tables anew.
+                let _ = stored::store(&folder, &kept.fingerprint, &kept.ms, &kept.sky);
+            });
+            if let Some(previous) = lock(&self.writing).replace(write) {
+                let _ = previous.join();
+            }
+        }
         tables
     }
 
-    /// The kept tables. A poisoned lock only means another thread
-    /// panicked while holding it; the value is an Arc swapped whole.
-    fn lock(&self) -> std::sync::MutexGuard<'_, Option<Arc<ModelTables>>> {
-        self.last
-            .lock()
-            .unwrap_or_else(std::sync::PoisonError::into_inner)
+    /// Waits for the last tables' write to disk, if one is under way.
+    fn wait_for_writes(&self) {
+        if let Some(write) = lock(&self.writing).take() {
+            let _ = write.join();
+        }
     }
+}
+
+/// A cache's lock. A poisoned lock only means another thread panicked
+/// while holding it; the values are swapped whole.
+fn lock<T>(mutex: &Mutex<T>) -> std::sync::MutexGuard<'_, T> {
+    mutex
+        .lock()
+        .unwrap_or_else(std::sync::PoisonError::into_inner)
 }
 
 /// The tables [`ModelTables::shared`] made last.
 static SHARED: TableCache = TableCache::new();
 
-/// Drops the tables [`ModelTables::shared`] keeps, so that the next call
-/// makes them anew (the bench's cold first frame).
+/// Drops the tables [`ModelTables::shared`] keeps in memory, so that the
+/// next call reads them from disk or makes them anew (the bench's cold
+/// first frame), after waiting for their write to disk.
 pub fn forget_shared_tables() {
-    *SHARED.lock() = None;
+    SHARED.wait_for_writes();
+    *lock(&SHARED.last) = None;
+}
+
+/// Whether [`ModelTables::shared`] reads and writes its tables on disk
+/// (on by default; the bench turns it off to time the tables' making).
+pub fn keep_shared_tables_on_disk(on: bool) {
+    SHARED.on_disk.store(on, Ordering::Relaxed);
 }
 
 /// The optics the tables are made of, sampled: each node's coefficients
@@ -505,12 +581,87 @@ mod tests {
     use crate::render::Renderer;
     use crate::Scene;
 
+    /// The numbers of two sets of tables, bit for bit.
+    fn same_numbers(a: &ModelTables, b: &ModelTables) -> bool {
+        let bits = |t: &ModelTables| -> Vec<u64> {
+            let values = t.ms.values.iter().flatten().flatten();
+            let factors = t.ms.zenith_factors.iter().flatten().flatten();
+            let sky = t.sky.values.iter().flatten();
+            values
+                .chain(factors)
+                .chain(sky)
+                .map(|v| v.to_bits())
+                .collect()
+        };
+        bits(a) == bits(b)
+    }
+
+    /// Tables written to disk come back bit for bit in the next process
+    /// (a cache of its own over the same folder); a damaged or truncated
+    /// file, or one of other optics, is never read, and the tables are
+    /// made anew; a folder that cannot be made costs nothing but the file.
+    #[test]
+    fn tables_kept_on_disk_come_back_whole_or_not_at_all() {
+        let folder = tempfile::tempdir().unwrap();
+        let renderer = Renderer::new(&Scene::preset("midday").unwrap()).unwrap();
+        let (medium, lanes) = (&renderer.medium, &renderer.lane_table);
+        let radii = (
+            medium.planet_radius_m,
+            medium.top_radius_m - medium.planet_radius_m,
+        );
+        let key = fingerprint(medium, lanes);
+        let first_cache = TableCache::in_folder(Some(folder.path().to_path_buf()));
+        let made = first_cache.get(medium, lanes);
+        first_cache.wait_for_writes();
+        let files: Vec<_> = std::fs::read_dir(folder.path())
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .collect();
+        assert_eq!(files.len(), 1, "one file per atmosphere: {files:?}");
+        // Read back, as the next process would.
+        let read = TableCache::in_folder(Some(folder.path().to_path_buf())).get(medium, lanes);
+        assert!(!Arc::ptr_eq(&made, &read));
+        assert!(same_numbers(&made, &read));
+        assert!(stored::load(folder.path(), &key, radii).is_some());
+        // Another atmosphere's fingerprint finds nothing.
+        let mut other = key.clone();
+        other[0] += 1.0;
+        assert!(stored::load(folder.path(), &other, radii).is_none());
+        // One bit changed anywhere, or the file cut short: not read.
+        let bytes = std::fs::read(&files[0]).unwrap();
+        for at in [9, bytes.len() / 2, bytes.len() - 1] {
+            let mut damaged = bytes.clone();
+            damaged[at] ^= 0x10;
+            std::fs::write(&files[0], &damaged).unwrap();
+            assert!(
+                stored::load(folder.path(), &key, radii).is_none(),
+                "byte {at}"
+            );
+        }
+        std::fs::write(&files[0], &bytes[..bytes.len() - 8]).unwrap();
+        assert!(stored::load(folder.path(), &key, radii).is_none());
+        // Damaged, the tables are made anew (the same numbers) and the
+        // file written again.
+        let cache = TableCache::in_folder(Some(folder.path().to_path_buf()));
+        assert!(same_numbers(&made, &cache.get(medium, lanes)));
+        cache.wait_for_writes();
+        assert!(stored::load(folder.path(), &key, radii).is_some());
+        // A "folder" that is a file: no file kept, the tables all the same.
+        let blocked = folder.path().join("blocked");
+        std::fs::write(&blocked, b"").unwrap();
+        let cache = TableCache::in_folder(Some(blocked.join("sky-model")));
+        assert!(same_numbers(&made, &cache.get(medium, lanes)));
+        cache.wait_for_writes();
+        assert_eq!(std::fs::read_dir(folder.path()).unwrap().count(), 2);
+    }
+
     /// The tables are kept for renderers of the same atmosphere, whatever
     /// the sun, observer and camera, and made anew for another.
     #[test]
     fn tables_are_shared_by_atmosphere() {
-        // A cache of its own: other tests use the shared one meanwhile.
-        let cache = TableCache::new();
+        // A cache of its own (and no files): other tests use the shared
+        // one meanwhile.
+        let cache = TableCache::in_folder(None);
         let tables = |scene: &Scene| {
             let renderer = Renderer::new(scene).unwrap();
             cache.get(&renderer.medium, &renderer.lane_table)
