@@ -23,8 +23,15 @@ pub(super) type Spectrum = [f64; NODES];
 pub(super) const TABLE_STEPS: usize = 12;
 /// Steps of a march through the table of an order past the first.
 pub(super) const TABLE_STEPS_HIGHER: usize = 8;
-/// Directions over which Ψ's integrals are summed.
+/// Directions over which Ψ's integrals are summed: outside the cap about
+/// the sun, as dense as an even set of this many.
 pub(super) const MS_DIRECTIONS: usize = 128;
+/// ... and inside it, as dense as an even set of this many
+/// ([`Quadrature::about_the_sun`]).
+pub(super) const MS_DIRECTIONS_NEAR_SUN: usize = 768;
+/// The cosine of the cap's half-angle about the sun (40°: wide enough for
+/// the Martian dust's aureole and twilight's arch about the set sun).
+pub(super) const SUN_CAP_COSINE: f64 = 0.766;
 /// Directions over which the orders past the second are summed (their
 /// light is smoother than the once-scattered light, whose twilight arch
 /// and horizon band fewer directions alias).
@@ -156,12 +163,6 @@ impl Optics<'_> {
             ..*self
         };
         (sun, optics)
-    }
-
-    /// The phase functions (P_R, P_A) at each wavelength at cosine `mu`
-    /// between the ray and the sun ([`Phases`]).
-    pub(super) fn phases(&self, mu: f64) -> (Spectrum, Spectrum) {
-        self.phases.at(mu)
     }
 }
 
@@ -530,6 +531,84 @@ pub(super) fn node_wavelength(k: usize) -> f64 {
     RANGE_NM.0 + (RANGE_NM.1 - RANGE_NM.0) * k as f64 / (NODES - 1) as f64
 }
 
+/// Directions to sum an integral over the sphere by, each with its
+/// cell's solid angle and the phase functions averaged over a cell of
+/// that size ([`Phases::averaged_over_cells`]). Either spread evenly, or
+/// denser within a cap about the sun: the once-scattered light arriving
+/// at a point holds the aureole, as narrow as the aerosol's forward peak,
+/// and the light scattered again toward a view near the sun is its
+/// product with that same peak, which cells as wide as an even set's
+/// smooth twice over (the Martian dust's aureole read too faint at its
+/// centre and too bright on its skirt).
+pub(super) struct Quadrature {
+    /// Per direction (the sun at +z where `about_the_sun`): the
+    /// direction, its solid angle (sr) and its cells' index.
+    points: Vec<(DVec3, f64, usize)>,
+    /// Phase functions averaged over each size of cell.
+    cells: Vec<Phases>,
+    /// Whether the directions turn with the sun.
+    about_the_sun: bool,
+}
+
+impl Quadrature {
+    /// `count` directions spread evenly.
+    pub(super) fn even(phases: &Phases, count: usize) -> Self {
+        let weight = 4.0 * PI / count as f64;
+        Self {
+            points: fibonacci_sphere(count)
+                .into_iter()
+                .map(|d| (d, weight, 0))
+                .collect(),
+            cells: vec![phases.averaged_over_cells(count)],
+            about_the_sun: false,
+        }
+    }
+
+    /// The directions of an even set of `near` within the cap of cosine
+    /// `cap_cosine` about the sun, and of an even set of `far` outside
+    /// it; each part's solid angles sum to its area.
+    pub(super) fn about_the_sun(phases: &Phases, near: usize, far: usize, cap_cosine: f64) -> Self {
+        let mut points = Vec::new();
+        let caps = [
+            (near, 2.0 * PI * (1.0 - cap_cosine), true),
+            (far, 2.0 * PI * (1.0 + cap_cosine), false),
+        ];
+        for (index, (count, area, inside)) in caps.into_iter().enumerate() {
+            let part: Vec<DVec3> = fibonacci_sphere(count)
+                .into_iter()
+                .filter(|d| (d.z > cap_cosine) == inside)
+                .collect();
+            let weight = area / part.len().max(1) as f64;
+            points.extend(part.into_iter().map(|d| (d, weight, index)));
+        }
+        Self {
+            points,
+            cells: vec![
+                phases.averaged_over_cells(near),
+                phases.averaged_over_cells(far),
+            ],
+            about_the_sun: true,
+        }
+    }
+
+    /// Per direction, for the sun at `sun` (in the x–z plane, as
+    /// [`Optics::with_sun_at`] places it): the direction, its solid angle
+    /// and its cells' phase functions.
+    pub(super) fn points(&self, sun: DVec3) -> impl Iterator<Item = (DVec3, f64, &Phases)> + '_ {
+        // The rotation about y taking +z to the sun.
+        let (sin, cos) = (sun.x, sun.z);
+        let turn = self.about_the_sun;
+        self.points.iter().map(move |&(d, weight, cells)| {
+            let d = if turn {
+                DVec3::new(d.x * cos + d.z * sin, d.y, d.z * cos - d.x * sin)
+            } else {
+                d
+            };
+            (d, weight, &self.cells[cells])
+        })
+    }
+}
+
 /// `n` directions spread evenly over the sphere (a Fibonacci lattice).
 pub(super) fn fibonacci_sphere(n: usize) -> Vec<DVec3> {
     let golden = PI * (3.0 - 5.0_f64.sqrt());
@@ -606,6 +685,55 @@ mod tests {
                 r[0] * 4.0 * PI,
                 a[0]
             );
+        }
+    }
+
+    /// A quadrature's solid angles sum to the sphere's, its cosines over
+    /// the upper half to π; about the sun, its dense cap turns with the
+    /// sun and it sums the Martian dust's phase function (a forward peak
+    /// far narrower than the even set's cells) to 1 with the sun anywhere.
+    #[test]
+    fn quadratures_sum_the_sphere_and_turn_with_the_sun() {
+        let renderer = Renderer::new(&Scene::preset("mars-noon").unwrap()).unwrap();
+        let medium = &renderer.medium;
+        let groups: Vec<SpectralLanes> = (0..GROUPS)
+            .map(|g| {
+                let w = crate::render::medium::Lanes::from_fn(|j| node_wavelength(g * LANES + j));
+                renderer.lane_table.lanes(w, LANES, medium)
+            })
+            .collect();
+        let phases = Phases::new(medium, &groups);
+        let even = Quadrature::even(&phases, MS_DIRECTIONS);
+        let near = Quadrature::about_the_sun(
+            &phases,
+            MS_DIRECTIONS_NEAR_SUN,
+            MS_DIRECTIONS,
+            SUN_CAP_COSINE,
+        );
+        for mu_s in [1.0_f64, 0.5, 0.0, -0.3] {
+            let sun = DVec3::new((1.0 - mu_s * mu_s).sqrt(), 0.0, mu_s);
+            for (name, q) in [("even", &even), ("about the sun", &near)] {
+                let total: f64 = q.points(sun).map(|p| p.1).sum();
+                assert!((total / (4.0 * PI) - 1.0).abs() < 1e-9, "{name}: {total}");
+                let up: f64 = q.points(sun).map(|(d, w, _)| w * d.z.max(0.0)).sum();
+                assert!((up / PI - 1.0).abs() < 0.02, "{name} at {mu_s}: {up}");
+                assert!(q.points(sun).all(|p| (p.0.length() - 1.0).abs() < 1e-12));
+            }
+            let in_cap = near
+                .points(sun)
+                .filter(|p| p.0.dot(sun) > SUN_CAP_COSINE)
+                .count();
+            let expected = MS_DIRECTIONS_NEAR_SUN as f64 * (1.0 - SUN_CAP_COSINE) / 2.0;
+            assert!(
+                (in_cap as f64 - expected).abs() <= 1.0,
+                "{in_cap} in the cap"
+            );
+            // Σ P̄(ω·sun) Δω for the dust's phase at its most peaked node.
+            let dust: f64 = near
+                .points(sun)
+                .map(|(d, w, cells)| w * cells.at(d.dot(sun)).1[0])
+                .sum();
+            assert!((dust - 1.0).abs() < 0.01, "dust's phase sums to {dust}");
         }
     }
 

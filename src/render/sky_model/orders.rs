@@ -13,10 +13,11 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::optics::{
-    altitude_of, fibonacci_sphere, node_wavelength, view_cosine_index, view_cosine_of,
-    view_zenith_cosine_of, zenith_cosine_of, MsTable, Optics, Phases, SkyIrradiance, Sources,
-    Spectrum, GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_HIGHER, MS_VIEW_ANGLES,
-    MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES, TABLE_STEPS, TABLE_STEPS_HIGHER,
+    altitude_of, node_wavelength, view_cosine_index, view_cosine_of, view_zenith_cosine_of,
+    zenith_cosine_of, MsTable, Optics, Phases, Quadrature, SkyIrradiance, Sources, Spectrum,
+    GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_HIGHER, MS_DIRECTIONS_NEAR_SUN,
+    MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES, SUN_CAP_COSINE,
+    TABLE_STEPS, TABLE_STEPS_HIGHER,
 };
 use super::stored;
 use crate::render::lanes::LaneTable;
@@ -30,31 +31,22 @@ impl MsTable {
     /// The light scattered once more than `previous`'s: from the sunlight
     /// scattered once (and the sunlit ground) without it, else from the
     /// light of the previous order (its table J_n, and the ground lit by
-    /// the sky of the order before, E_{n−1}). `cells` are the phase
-    /// functions averaged over the cells of the sum's directions
-    /// ([`Phases::averaged_over_cells`] of [`MS_DIRECTIONS`] for the
-    /// first, [`MS_DIRECTIONS_HIGHER`] after): the sums below stand for
-    /// integrals over the sphere, and a forward peak narrower than the
-    /// directions' spacing would be hit or missed from one view to the
-    /// next. That holds for the once-scattered light arriving from each
-    /// direction too (the aureole about the sun).
+    /// the sky of the order before, E_{n−1}), summed over `quadrature`'s
+    /// directions with the phase functions averaged over their cells: the
+    /// sums below stand for integrals over the sphere, and a forward peak
+    /// narrower than the directions' spacing would be hit or missed from
+    /// one view to the next. That holds for the once-scattered light
+    /// arriving from each direction too (the aureole about the sun).
     fn scattered(
         optics: &Optics<'_>,
         previous: Option<(&MsTable, &SkyIrradiance)>,
-        cell_phases: &Phases,
+        quadrature: &Quadrature,
     ) -> Self {
         let medium = optics.medium;
         let (planet_radius_m, top_m) = (
             medium.planet_radius_m,
             medium.top_radius_m - medium.planet_radius_m,
         );
-        let count = if previous.is_some() {
-            MS_DIRECTIONS_HIGHER
-        } else {
-            MS_DIRECTIONS
-        };
-        let directions = fibonacci_sphere(count);
-        let weight = 4.0 * PI / count as f64;
         // Per solar zenith (the sun's direction, and so every phase
         // function value, is the same at each altitude): the altitudes' rows.
         let per_zenith: Vec<ZenithEntries> = (0..MS_ZENITHS)
@@ -71,19 +63,15 @@ impl MsTable {
                         [sun * nu + toward * sin, sun * nu + across * sin]
                     })
                     .collect();
-                let to_sun: Vec<_> = directions
-                    .iter()
-                    .map(|d| cell_phases.at(d.dot(sun)))
-                    .collect();
-                let to_view: Vec<Vec<_>> = views
-                    .iter()
-                    .map(|v| {
-                        directions
-                            .iter()
-                            .map(|d| cell_phases.at(d.dot(*v)))
-                            .collect()
-                    })
-                    .collect();
+                let points: Vec<(DVec3, f64, &Phases)> = quadrature.points(sun).collect();
+                let phases_toward = |v: DVec3| -> Vec<(Spectrum, Spectrum)> {
+                    points
+                        .iter()
+                        .map(|(d, _, cells)| cells.at(d.dot(v)))
+                        .collect()
+                };
+                let to_sun = phases_toward(sun);
+                let to_view: Vec<Vec<_>> = views.iter().map(|&v| phases_toward(v)).collect();
                 // Views at each tabulated zenith, at azimuths from the sun
                 // spread over a half turn (the other half mirrors them),
                 // and their places in the ν table.
@@ -100,21 +88,17 @@ impl MsTable {
                     .collect();
                 let to_zenith_view: Vec<Vec<_>> = zenith_views
                     .iter()
-                    .map(|(v, _)| {
-                        directions
-                            .iter()
-                            .map(|d| cell_phases.at(d.dot(*v)))
-                            .collect()
-                    })
+                    .map(|&(v, _)| phases_toward(v))
                     .collect();
                 let rows: Vec<ZenithEntries> = (0..MS_ALTITUDES)
                     .map(|i| {
                         let r = planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
                         let origin = DVec3::new(0.0, 0.0, r);
-                        let arriving: Vec<Spectrum> = directions
+                        // Each direction's light times its solid angle.
+                        let arriving: Vec<Spectrum> = points
                             .iter()
                             .zip(&to_sun)
-                            .map(|(&dir, (pr, pa))| match previous {
+                            .map(|(&(dir, weight, _), (pr, pa))| match previous {
                                 None => {
                                     let once = Sources {
                                         sunlight: true,
@@ -124,9 +108,10 @@ impl MsTable {
                                     };
                                     let g = cell_optics.march(origin, dir, TABLE_STEPS, once);
                                     std::array::from_fn(|n| {
-                                        pr[n] * g.rayleigh[n]
-                                            + pa[n] * g.aerosol[n]
-                                            + g.isotropic[n]
+                                        weight
+                                            * (pr[n] * g.rayleigh[n]
+                                                + pa[n] * g.aerosol[n]
+                                                + g.isotropic[n])
                                     })
                                 }
                                 Some((table, sky)) => {
@@ -136,9 +121,9 @@ impl MsTable {
                                         ground_sun: false,
                                         ground_sky: Some(sky),
                                     };
-                                    cell_optics
-                                        .march(origin, dir, TABLE_STEPS_HIGHER, order)
-                                        .isotropic
+                                    let g =
+                                        cell_optics.march(origin, dir, TABLE_STEPS_HIGHER, order);
+                                    g.isotropic.map(|v| weight * v)
                                 }
                             })
                             .collect();
@@ -155,7 +140,7 @@ impl MsTable {
                                             }
                                         }
                                     }
-                                    out.map(|o| std::array::from_fn(|n| o[n] * 0.5 * weight))
+                                    out.map(|o| o.map(|v| 0.5 * v))
                                 })
                                 .collect::<Vec<[Spectrum; 2]>>()
                         };
@@ -169,8 +154,8 @@ impl MsTable {
                                 let mut direct = [[0.0; NODES]; 2];
                                 for (l, (pr, pa)) in arriving.iter().zip(phases) {
                                     for n in 0..NODES {
-                                        direct[0][n] += l[n] * pr[n] * weight;
-                                        direct[1][n] += l[n] * pa[n] * weight;
+                                        direct[0][n] += l[n] * pr[n];
+                                        direct[1][n] += l[n] * pa[n];
                                     }
                                 }
                                 let a = (*index as usize).min(MS_VIEW_ANGLES - 2);
@@ -257,20 +242,11 @@ impl MsTable {
 
 impl SkyIrradiance {
     /// The irradiance of the sunlight scattered once (without `ms`) or of
-    /// the light that `ms` scatters toward the ground.
-    fn scattered(optics: &Optics<'_>, ms: Option<&MsTable>) -> Self {
+    /// the light that `ms` scatters toward the ground, summed over the
+    /// upward directions of `quadrature` (the once-scattered light with
+    /// its cells' phase functions: the aureole is as narrow as there).
+    fn scattered(optics: &Optics<'_>, ms: Option<&MsTable>, quadrature: &Quadrature) -> Self {
         let medium = optics.medium;
-        // Half of a sphere's directions look up.
-        let count = 2 * if ms.is_some() {
-            MS_DIRECTIONS_HIGHER
-        } else {
-            MS_DIRECTIONS
-        };
-        let up: Vec<DVec3> = fibonacci_sphere(count)
-            .into_iter()
-            .filter(|d| d.z > 0.0)
-            .collect();
-        let weight = 4.0 * PI / count as f64;
         // Looking up from the ground, no view ray ends on it.
         let sources = Sources {
             sunlight: ms.is_none(),
@@ -278,23 +254,23 @@ impl SkyIrradiance {
             ground_sun: false,
             ground_sky: None,
         };
+        let steps = if ms.is_some() {
+            TABLE_STEPS_HIGHER
+        } else {
+            TABLE_STEPS
+        };
         let values = (0..MS_ZENITHS)
             .into_par_iter()
             .map(|k| {
                 let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
                 let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1.0);
                 let mut e = [0.0; NODES];
-                for &dir in &up {
-                    let steps = if ms.is_some() {
-                        TABLE_STEPS_HIGHER
-                    } else {
-                        TABLE_STEPS
-                    };
+                for (dir, weight, cells) in quadrature.points(sun).filter(|p| p.0.z > 0.0) {
                     let g = cell_optics.march(origin, dir, steps, sources);
                     let radiance: Spectrum = if ms.is_some() {
                         g.isotropic
                     } else {
-                        let (pr, pa) = cell_optics.phases(dir.dot(sun));
+                        let (pr, pa) = cells.at(dir.dot(sun));
                         std::array::from_fn(|n| pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n])
                     };
                     for n in 0..NODES {
@@ -329,17 +305,33 @@ const MAX_ORDER_RATIO: f64 = 0.9;
 /// a fifth of it there.
 fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
     // J₂ from the once-scattered light; E₁ of the once-scattered sky.
-    let first_cells = optics.phases.averaged_over_cells(MS_DIRECTIONS);
-    let higher_cells = optics.phases.averaged_over_cells(MS_DIRECTIONS_HIGHER);
-    let mut table = MsTable::scattered(optics, None, &first_cells);
-    let mut sky = SkyIrradiance::scattered(optics, None);
+    let first = Quadrature::about_the_sun(
+        optics.phases,
+        MS_DIRECTIONS_NEAR_SUN,
+        MS_DIRECTIONS,
+        SUN_CAP_COSINE,
+    );
+    let higher = Quadrature::even(optics.phases, MS_DIRECTIONS_HIGHER);
+    // Only the upward half of each set counts from the ground: twice as
+    // many directions over the sphere keep the sky as finely summed, but
+    // for the cap about the sun, where the table's density already holds
+    // the aureole's share of the irradiance (a finer cap changed nothing).
+    let first_up = Quadrature::about_the_sun(
+        optics.phases,
+        MS_DIRECTIONS_NEAR_SUN,
+        2 * MS_DIRECTIONS,
+        SUN_CAP_COSINE,
+    );
+    let higher_up = Quadrature::even(optics.phases, 2 * MS_DIRECTIONS_HIGHER);
+    let mut table = MsTable::scattered(optics, None, &first);
+    let mut sky = SkyIrradiance::scattered(optics, None, &first_up);
     let (mut psi, mut irradiance) = (table.clone(), sky.clone());
     let (mut last_table, mut last_sky) = (table.clone(), sky.clone());
     for _ in 2..ORDERS {
         // E_n from J_n, then J_{n+1} from L_n (J_n and the ground lit by
         // E_{n−1}).
-        let next_sky = SkyIrradiance::scattered(optics, Some(&table));
-        let next_table = MsTable::scattered(optics, Some((&table, &sky)), &higher_cells);
+        let next_sky = SkyIrradiance::scattered(optics, Some(&table), &higher_up);
+        let next_table = MsTable::scattered(optics, Some((&table, &sky)), &higher);
         for (sum, v) in psi.numbers_mut().zip(next_table.numbers()) {
             *sum += v;
         }
