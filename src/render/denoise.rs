@@ -30,11 +30,20 @@ pub(super) fn denoised(
     wraps: bool,
 ) -> Vec<[f32; 3]> {
     // Per pixel: ground (true) or sky; a pixel with no finite variance
-    // (or correction) is taken as it is.
+    // (or correction) is taken as it is, and so is one with none: its
+    // passes agree exactly (the black of space beyond the limb), and its
+    // correction is known. Averaged with the limb's, it took a share of
+    // the limb's correction, which the model's floor in the dark then
+    // made −2 000 % (`render::fast`), and the limb's fine pixels went
+    // black.
     let parts: Vec<Option<bool>> = (0..size.0 * size.1)
         .map(|k| {
             shares[k]
-                .filter(|_| variance[k].is_finite() && residual[k].iter().all(|v| v.is_finite()))
+                .filter(|_| {
+                    variance[k].is_finite()
+                        && variance[k] > 0.0
+                        && residual[k].iter().all(|v| v.is_finite())
+                })
                 .map(|g| g > 0.5)
         })
         .collect();
