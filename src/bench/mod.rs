@@ -84,6 +84,12 @@ pub struct BenchArgs {
     /// Also measure the peak memory of an 8192×4096 equirect export.
     #[arg(long)]
     pub memory: bool,
+    /// Time for each of two further renders per scene whose mean is the
+    /// reference the first frame, the first pass, the preview at 2 s and
+    /// the fast mode are measured against (default: A and B themselves,
+    /// whose noise at low sun is as large as those errors).
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
+    pub reference_budget: Option<f64>,
     /// A short smoke run (small budget, fewer repetitions, small export).
     #[arg(long)]
     pub quick: bool,
@@ -239,6 +245,14 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             crate::scene::show_number(budget_s)
         ));
     }
+    if let Some(r) = args.reference_budget {
+        if !(r.is_finite() && (0.01..=86_400.0).contains(&r)) {
+            return Err(format!(
+                "bench: invalid reference budget: {} is outside the valid range 0.01 to 86400 s",
+                crate::scene::show_number(r)
+            ));
+        }
+    }
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
     let max_seed = crate::scene::MAX_SEED - 1;
     if seed > max_seed {
@@ -287,7 +301,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
     let mut fast_rows = Vec::new();
     for (name, scene) in &scenes {
         eprintln!("bench: {name}: {budget_s} s on {threads} thread(s)");
-        let run = pool.install(|| measure_noise(scene, budget_s, seed))?;
+        let run = pool.install(|| measure_noise(scene, budget_s, seed, args.reference_budget))?;
         let ff_scene = first_frame_scene(name, scene);
         let first = pool.install(|| first_frame_ms(&ff_scene, repeats))?;
         let target = noise_target(name);
@@ -366,7 +380,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
                         continue;
                     }
                 };
-                let v = pool.install(|| measure_noise(&s, budget_s, seed))?;
+                let v = pool.install(|| measure_noise(&s, budget_s, seed, None))?;
                 let equal_time = |noise_v: f64, noise: f64| {
                     (noise_v * noise_v * v.seconds / (noise * noise * run.seconds)).sqrt()
                 };
@@ -417,7 +431,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         ),
         "time_to_2pct_s / time_to_1pct_s: extrapolated from noise_at_budget and the time actually spent, assuming noise ∝ 1/sqrt(time)".into(),
         "noise_ground_at_budget / noise_whole_at_budget: the same noise over the pixels whose centre's ray meets the ground, and over every pixel with a ray (lit, above the air), sun cone excluded; time_to_1pct_4k_s: time to 1 % over the whole image of a 4096x2048 render, extrapolated (noise ∝ 1/sqrt(time), time ∝ pixels)".into(),
-        "noise_neighbour_correlation: the largest correlation of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of the preview's first frame, the approximate sky model, minus the mean of A and B over the whole image, relative to the mean, the reference's own noise removed in quadrature; first_pass_error: the same for one Monte Carlo pass (seed + 2); preview_error_2s: the same for what the preview shows 2 s after a change (the last image render::preview completed by then: the model corrected by quarter-size passes, then the full passes blended with it)".into(),
+        "noise_neighbour_correlation: the largest correlation of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of the preview's first frame, the approximate sky model, minus the reference over the whole image (the mean of A and B, or with --reference-budget of two further renders of that time each, seeds + 3 and + 4: details.run.reference_noise), relative to the mean, the reference's own noise removed in quadrature; first_pass_error: the same for one Monte Carlo pass (seed + 2); preview_error_2s: the same for what the preview shows 2 s after a change (the last image render::preview completed by then: the model corrected by quarter-size passes, then the full passes blended with it)".into(),
         format!(
             "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
@@ -631,8 +645,11 @@ mod tests {
             "--ablation",
             "--seed",
             "7",
+            "--reference-budget",
+            "60",
         ]);
         assert_eq!(w.bench.budget, Some(3.0));
+        assert_eq!(w.bench.reference_budget, Some(60.0));
         assert_eq!(w.bench.seed, Some(7));
         assert_eq!(
             w.bench.scenes.as_deref(),
@@ -719,6 +736,7 @@ mod tests {
             quick: true,
             ablation: true,
             scaling: true,
+            reference_budget: Some(0.8),
             ..BenchArgs::default()
         };
         let report = bench(&args).unwrap();
@@ -788,6 +806,15 @@ mod tests {
             );
             assert!(r.first_frame_ms > 0.0);
         }
+        // The reference's two renders take four times A's and B's time:
+        // less noisy than their mean.
+        let run = &report.details[0].run;
+        assert!(
+            run.reference_noise.is_finite() && run.reference_noise < run.noise_whole,
+            "{} against {}",
+            run.reference_noise,
+            run.noise_whole
+        );
         assert_eq!(report.ablation.len(), ablation_variants().len());
         if process_cpu_seconds().is_some() {
             let share = report.details[0].run.cpu_share;
@@ -817,6 +844,14 @@ mod tests {
             ..BenchArgs::default()
         };
         assert!(bench(&bad_budget).unwrap_err().contains("budget"));
+        for bad in [0.0, f64::NAN, 1e9] {
+            let bad_reference = BenchArgs {
+                reference_budget: Some(bad),
+                ..BenchArgs::default()
+            };
+            let err = bench(&bad_reference).unwrap_err();
+            assert!(err.contains("reference budget"), "{bad}: {err}");
+        }
         let bad_threads = BenchArgs {
             threads: Some(0),
             ..BenchArgs::default()

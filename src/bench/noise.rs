@@ -167,10 +167,14 @@ pub struct NoiseRun {
     pub column_correlation: f64,
     /// See `row_correlation`: pixels on one circle about the sun's axis.
     pub circle_correlation: f64,
+    /// The reference's own relative noise over the whole image: the mean
+    /// of A and B (`noise_whole`), or, with a reference budget, the mean
+    /// of two longer renders of their own (seeds + 3 and + 4).
+    pub reference_noise: f64,
     /// RMS error of one first pass (the draft, another seed) against the
-    /// mean of A and B over the whole image, relative to its mean
-    /// luminance, with the reference's own noise (`noise_whole`) taken out
-    /// in quadrature.
+    /// reference over the whole image, relative to its mean luminance,
+    /// with the reference's own noise (`reference_noise`) taken out in
+    /// quadrature.
     pub first_pass_error: f64,
     /// The same error for the approximate sky model
     /// ([`crate::render::sky_model`]): the preview's first frame.
@@ -180,8 +184,8 @@ pub struct NoiseRun {
     /// completed by then (the model, corrected by coarse passes, then the
     /// full passes blended with it).
     pub preview_error_2s: f64,
-    /// The mean of A and B (luminance, row-major): the reference other
-    /// images are compared with.
+    /// The reference other images are compared with (luminance,
+    /// row-major): see `reference_noise`.
     #[serde(skip)]
     pub reference: Vec<f64>,
     /// The whole-image mask (see `noise_whole`).
@@ -255,7 +259,12 @@ pub(super) fn render_for(renderer: &Renderer, seconds: f64) -> Rendered {
 
 /// Render `scene` twice, with seeds `seed` and `seed + 1`, `budget_s / 2` each, and
 /// measure the relative noise of the mean image over the sky.
-pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun, String> {
+pub fn measure_noise(
+    scene: &Scene,
+    budget_s: f64,
+    seed: u64,
+    reference_s: Option<f64>,
+) -> Result<NoiseRun, String> {
     let mut images = Vec::with_capacity(2);
     let mut run = NoiseRun {
         noise: f64::NAN,
@@ -276,6 +285,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         first_pass_error: f64::NAN,
         model_error: f64::NAN,
         preview_error_2s: f64::NAN,
+        reference_noise: f64::NAN,
         reference: Vec::new(),
         whole_mask: Vec::new(),
     };
@@ -340,7 +350,32 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         run.column_correlation,
         run.circle_correlation,
     ) = c;
-    // The first pass of a third, independent render against the mean.
+    // The reference: A and B's mean, or two longer renders' (a converged
+    // reference for the errors below, where A and B are still noisy).
+    let mean = match reference_s {
+        None => {
+            run.reference_noise = run.noise_whole;
+            mean
+        }
+        Some(seconds) => {
+            let mut long = Vec::with_capacity(2);
+            for offset in [3, 4] {
+                let mut s = scene.clone();
+                s.render.seed = seed.checked_add(offset).ok_or_else(|| {
+                    format!("seed {seed}: the reference's seed (seed + {offset}) overflows")
+                })?;
+                let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
+                long.push(luminance(&render_for(&renderer, seconds).film));
+            }
+            run.reference_noise = relative_noise(&long[0], &long[1], &whole);
+            long[0]
+                .iter()
+                .zip(&long[1])
+                .map(|(a, b)| 0.5 * (a + b))
+                .collect()
+        }
+    };
+    // The first pass of a third, independent render against the reference.
     let third = second
         .checked_add(1)
         .ok_or_else(|| format!("seed {seed}: the first pass's seed (seed + 2) overflows"))?;
@@ -351,7 +386,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     renderer.render_pass(&mut film, 0, &|| false);
     let first = luminance(&film);
     let error = relative_noise(&first, &mean, &whole) * 2.0;
-    run.first_pass_error = (error * error - run.noise_whole * run.noise_whole)
+    run.first_pass_error = (error * error - run.reference_noise * run.reference_noise)
         .max(0.0)
         .sqrt();
     let model_image = renderer.sky_model_image();
@@ -364,7 +399,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     };
     let model = y(&model_image);
     let error = relative_noise(&model, &mean, &whole) * 2.0;
-    run.model_error = (error * error - run.noise_whole * run.noise_whole)
+    run.model_error = (error * error - run.reference_noise * run.reference_noise)
         .max(0.0)
         .sqrt();
     // What the preview shows PREVIEW_SECONDS after a change: the last image
@@ -382,7 +417,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     }
     let shown = y(&last);
     let error = relative_noise(&shown, &mean, &whole) * 2.0;
-    run.preview_error_2s = (error * error - run.noise_whole * run.noise_whole)
+    run.preview_error_2s = (error * error - run.reference_noise * run.reference_noise)
         .max(0.0)
         .sqrt();
     run.reference = mean;
