@@ -533,41 +533,48 @@ pub(super) fn node_wavelength(k: usize) -> f64 {
 
 /// Directions to sum an integral over the sphere by, each with its
 /// cell's solid angle and the phase functions averaged over a cell of
-/// that size ([`Phases::averaged_over_cells`]). Either spread evenly, or
+/// that size ([`Phases::averaged_over_cells`], made once by the caller:
+/// several sets share them). Either spread evenly, or
 /// denser within a cap about the sun: the once-scattered light arriving
 /// at a point holds the aureole, as narrow as the aerosol's forward peak,
 /// and the light scattered again toward a view near the sun is its
 /// product with that same peak, which cells as wide as an even set's
 /// smooth twice over (the Martian dust's aureole read too faint at its
 /// centre and too bright on its skirt).
-pub(super) struct Quadrature {
+pub(super) struct Quadrature<'a> {
     /// Per direction (the sun at +z where `about_the_sun`): the
     /// direction, its solid angle (sr) and its cells' index.
     points: Vec<(DVec3, f64, usize)>,
     /// Phase functions averaged over each size of cell.
-    cells: Vec<Phases>,
+    cells: Vec<&'a Phases>,
     /// Whether the directions turn with the sun.
     about_the_sun: bool,
 }
 
-impl Quadrature {
-    /// `count` directions spread evenly.
-    pub(super) fn even(phases: &Phases, count: usize) -> Self {
+impl<'a> Quadrature<'a> {
+    /// `count` directions spread evenly, with `cells` (the phase functions
+    /// averaged over cells of 4π/`count`).
+    pub(super) fn even(count: usize, cells: &'a Phases) -> Self {
         let weight = 4.0 * PI / count as f64;
         Self {
             points: fibonacci_sphere(count)
                 .into_iter()
                 .map(|d| (d, weight, 0))
                 .collect(),
-            cells: vec![phases.averaged_over_cells(count)],
+            cells: vec![cells],
             about_the_sun: false,
         }
     }
 
     /// The directions of an even set of `near` within the cap of cosine
     /// `cap_cosine` about the sun, and of an even set of `far` outside
-    /// it; each part's solid angles sum to its area.
-    pub(super) fn about_the_sun(phases: &Phases, near: usize, far: usize, cap_cosine: f64) -> Self {
+    /// it, with `cells` for each (as [`Self::even`]'s); each part's solid
+    /// angles sum to its area.
+    pub(super) fn about_the_sun(
+        (near, far): (usize, usize),
+        cap_cosine: f64,
+        cells: [&'a Phases; 2],
+    ) -> Self {
         let mut points = Vec::new();
         let caps = [
             (near, 2.0 * PI * (1.0 - cap_cosine), true),
@@ -583,10 +590,7 @@ impl Quadrature {
         }
         Self {
             points,
-            cells: vec![
-                phases.averaged_over_cells(near),
-                phases.averaged_over_cells(far),
-            ],
+            cells: cells.to_vec(),
             about_the_sun: true,
         }
     }
@@ -604,7 +608,7 @@ impl Quadrature {
             } else {
                 d
             };
-            (d, weight, &self.cells[cells])
+            (d, weight, self.cells[cells])
         })
     }
 }
@@ -703,12 +707,15 @@ mod tests {
             })
             .collect();
         let phases = Phases::new(medium, &groups);
-        let even = Quadrature::even(&phases, MS_DIRECTIONS);
+        let (near_cells, far_cells) = (
+            phases.averaged_over_cells(MS_DIRECTIONS_NEAR_SUN),
+            phases.averaged_over_cells(MS_DIRECTIONS),
+        );
+        let even = Quadrature::even(MS_DIRECTIONS, &far_cells);
         let near = Quadrature::about_the_sun(
-            &phases,
-            MS_DIRECTIONS_NEAR_SUN,
-            MS_DIRECTIONS,
+            (MS_DIRECTIONS_NEAR_SUN, MS_DIRECTIONS),
             SUN_CAP_COSINE,
+            [&near_cells, &far_cells],
         );
         for mu_s in [1.0_f64, 0.5, 0.0, -0.3] {
             let sun = DVec3::new((1.0 - mu_s * mu_s).sqrt(), 0.0, mu_s);

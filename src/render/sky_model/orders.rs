@@ -305,24 +305,28 @@ const MAX_ORDER_RATIO: f64 = 0.9;
 /// a fifth of it there.
 fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
     // J₂ from the once-scattered light; E₁ of the once-scattered sky.
+    let cells = |count: usize| optics.phases.averaged_over_cells(count);
+    let (near_cells, far_cells) = (cells(MS_DIRECTIONS_NEAR_SUN), cells(MS_DIRECTIONS));
     let first = Quadrature::about_the_sun(
-        optics.phases,
-        MS_DIRECTIONS_NEAR_SUN,
-        MS_DIRECTIONS,
+        (MS_DIRECTIONS_NEAR_SUN, MS_DIRECTIONS),
         SUN_CAP_COSINE,
+        [&near_cells, &far_cells],
     );
-    let higher = Quadrature::even(optics.phases, MS_DIRECTIONS_HIGHER);
+    let higher_cells = cells(MS_DIRECTIONS_HIGHER);
+    let higher = Quadrature::even(MS_DIRECTIONS_HIGHER, &higher_cells);
     // Only the upward half of each set counts from the ground: twice as
     // many directions over the sphere keep the sky as finely summed, but
     // for the cap about the sun, where the table's density already holds
     // the aureole's share of the irradiance (a finer cap changed nothing).
+    let far_up_cells = cells(2 * MS_DIRECTIONS);
     let first_up = Quadrature::about_the_sun(
-        optics.phases,
-        MS_DIRECTIONS_NEAR_SUN,
-        2 * MS_DIRECTIONS,
+        (MS_DIRECTIONS_NEAR_SUN, 2 * MS_DIRECTIONS),
         SUN_CAP_COSINE,
+        [&near_cells, &far_up_cells],
     );
-    let higher_up = Quadrature::even(optics.phases, 2 * MS_DIRECTIONS_HIGHER);
+    // The orders past the first reach the ground as their tables' light,
+    // already scattered: no phase function is read there.
+    let higher_up = Quadrature::even(2 * MS_DIRECTIONS_HIGHER, optics.phases);
     let mut table = MsTable::scattered(optics, None, &first);
     let mut sky = SkyIrradiance::scattered(optics, None, &first_up);
     let (mut psi, mut irradiance) = (table.clone(), sky.clone());
@@ -576,14 +580,7 @@ mod tests {
     /// The numbers of two sets of tables, bit for bit.
     fn same_numbers(a: &ModelTables, b: &ModelTables) -> bool {
         let bits = |t: &ModelTables| -> Vec<u64> {
-            let values = t.ms.values.iter().flatten().flatten();
-            let factors = t.ms.zenith_factors.iter().flatten().flatten();
-            let sky = t.sky.values.iter().flatten();
-            values
-                .chain(factors)
-                .chain(sky)
-                .map(|v| v.to_bits())
-                .collect()
+            stored::numbers(&t.ms, &t.sky).map(f64::to_bits).collect()
         };
         bits(a) == bits(b)
     }

@@ -111,7 +111,10 @@ fn path_of(folder: &Path, header: &[u8]) -> PathBuf {
 }
 
 /// Every number a file holds after its header, in order.
-fn numbers<'a>(ms: &'a MsTable, sky: &'a SkyIrradiance) -> impl Iterator<Item = f64> + 'a {
+pub(super) fn numbers<'a>(
+    ms: &'a MsTable,
+    sky: &'a SkyIrradiance,
+) -> impl Iterator<Item = f64> + 'a {
     let values = ms.values.iter().flatten().flatten();
     let factors = ms.zenith_factors.iter().flatten().flatten();
     values
