@@ -100,10 +100,7 @@ pub(super) fn measure_fast(
         .map(|(a, b)| 0.5 * (a + b))
         .collect();
     let error = relative_noise(&mean, &run.reference, mask) * 2.0;
-    let bias =
-        (error * error - noise_whole * noise_whole - run.reference_noise * run.reference_noise)
-            .max(0.0)
-            .sqrt();
+    let bias = super::noise::without_noise(error, &[noise_whole, run.reference_noise]);
     let masked_sum = |image: &[f64]| -> f64 {
         image
             .iter()

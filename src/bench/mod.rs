@@ -46,7 +46,8 @@ use machine::{cpu_model, measure_memory, measure_scaling, read_trimmed, thread_p
 pub use machine::{Machine, MemoryResult, ScalingResult};
 pub use noise::SUN_CONE_DEG;
 pub use noise::{
-    measure_noise, process_cpu_seconds, relative_noise, sky_mask, time_to_noise, NoiseRun, SkyMask,
+    measure_noise, measure_preview, process_cpu_seconds, relative_noise, sky_mask, time_to_noise,
+    NoiseRun, SkyMask,
 };
 pub use report::{format_report, AblationRow, Report, SceneDetail, SceneResult};
 
@@ -301,7 +302,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
     let mut fast_rows = Vec::new();
     for (name, scene) in &scenes {
         eprintln!("bench: {name}: {budget_s} s on {threads} thread(s)");
-        let run = pool.install(|| measure_noise(scene, budget_s, seed, args.reference_budget))?;
+        let mut run = pool.install(|| measure_noise(scene, budget_s, seed))?;
+        pool.install(|| measure_preview(&mut run, scene, seed, args.reference_budget))?;
         let ff_scene = first_frame_scene(name, scene);
         let first = pool.install(|| first_frame_ms(&ff_scene, repeats))?;
         let target = noise_target(name);
@@ -380,7 +382,8 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
                         continue;
                     }
                 };
-                let v = pool.install(|| measure_noise(&s, budget_s, seed, None))?;
+                // The preview's errors are the scene's, not a variant's.
+                let v = pool.install(|| measure_noise(&s, budget_s, seed))?;
                 let equal_time = |noise_v: f64, noise: f64| {
                     (noise_v * noise_v * v.seconds / (noise * noise * run.seconds)).sqrt()
                 };

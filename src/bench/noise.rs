@@ -258,13 +258,11 @@ pub(super) fn render_for(renderer: &Renderer, seconds: f64) -> Rendered {
 }
 
 /// Render `scene` twice, with seeds `seed` and `seed + 1`, `budget_s / 2` each, and
-/// measure the relative noise of the mean image over the sky.
-pub fn measure_noise(
-    scene: &Scene,
-    budget_s: f64,
-    seed: u64,
-    reference_s: Option<f64>,
-) -> Result<NoiseRun, String> {
+/// measure the relative noise of the mean image over the sky, the ground
+/// and the whole image, and its structure; the mean is the run's
+/// reference until [`measure_preview`] replaces it. The preview's errors
+/// stay NaN until [`measure_preview`] measures them.
+pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun, String> {
     let mut images = Vec::with_capacity(2);
     let mut run = NoiseRun {
         noise: f64::NAN,
@@ -350,34 +348,47 @@ pub fn measure_noise(
         run.column_correlation,
         run.circle_correlation,
     ) = c;
+    run.reference_noise = run.noise_whole;
+    run.reference = mean;
+    run.whole_mask = whole;
+    Ok(run)
+}
+
+/// The preview's errors of `scene` against `run`'s reference (the mean of
+/// its A and B, or with `reference_s` two further renders of that many
+/// seconds each, seeds + 3 and + 4, which then become `run`'s reference):
+/// one draft pass's (seed + 2), the sky model's and what `render::preview`
+/// shows 2 s after a change, each with the reference's noise taken out.
+pub fn measure_preview(
+    run: &mut NoiseRun,
+    scene: &Scene,
+    seed: u64,
+    reference_s: Option<f64>,
+) -> Result<(), String> {
+    let whole = &run.whole_mask;
     // The reference: A and B's mean, or two longer renders' (a converged
     // reference for the errors below, where A and B are still noisy).
-    let mean = match reference_s {
-        None => {
-            run.reference_noise = run.noise_whole;
-            mean
+    if let Some(seconds) = reference_s {
+        let mut long = Vec::with_capacity(2);
+        for offset in [3, 4] {
+            let mut s = scene.clone();
+            s.render.seed = seed.checked_add(offset).ok_or_else(|| {
+                format!("seed {seed}: the reference's seed (seed + {offset}) overflows")
+            })?;
+            let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
+            long.push(luminance(&render_for(&renderer, seconds).film));
         }
-        Some(seconds) => {
-            let mut long = Vec::with_capacity(2);
-            for offset in [3, 4] {
-                let mut s = scene.clone();
-                s.render.seed = seed.checked_add(offset).ok_or_else(|| {
-                    format!("seed {seed}: the reference's seed (seed + {offset}) overflows")
-                })?;
-                let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
-                long.push(luminance(&render_for(&renderer, seconds).film));
-            }
-            run.reference_noise = relative_noise(&long[0], &long[1], &whole);
-            long[0]
-                .iter()
-                .zip(&long[1])
-                .map(|(a, b)| 0.5 * (a + b))
-                .collect()
-        }
-    };
+        run.reference_noise = relative_noise(&long[0], &long[1], whole);
+        run.reference = long[0]
+            .iter()
+            .zip(&long[1])
+            .map(|(a, b)| 0.5 * (a + b))
+            .collect();
+    }
+    let mean = &run.reference;
     // The first pass of a third, independent render against the reference.
-    let third = second
-        .checked_add(1)
+    let third = seed
+        .checked_add(2)
         .ok_or_else(|| format!("seed {seed}: the first pass's seed (seed + 2) overflows"))?;
     let mut s = scene.clone();
     s.render.seed = third;
@@ -385,10 +396,8 @@ pub fn measure_noise(
     let mut film = renderer.new_film();
     renderer.render_pass(&mut film, 0, &|| false);
     let first = luminance(&film);
-    let error = relative_noise(&first, &mean, &whole) * 2.0;
-    run.first_pass_error = (error * error - run.reference_noise * run.reference_noise)
-        .max(0.0)
-        .sqrt();
+    let error = relative_noise(&first, mean, whole) * 2.0;
+    run.first_pass_error = without_noise(error, &[run.reference_noise]);
     let model_image = renderer.sky_model_image();
     let y = |image: &crate::output::RgbImage| -> Vec<f64> {
         image
@@ -398,10 +407,8 @@ pub fn measure_noise(
             .collect()
     };
     let model = y(&model_image);
-    let error = relative_noise(&model, &mean, &whole) * 2.0;
-    run.model_error = (error * error - run.reference_noise * run.reference_noise)
-        .max(0.0)
-        .sqrt();
+    let error = relative_noise(&model, mean, whole) * 2.0;
+    run.model_error = without_noise(error, &[run.reference_noise]);
     // What the preview shows PREVIEW_SECONDS after a change: the last image
     // its steps (render::preview, as the app's service takes them)
     // completed by then, from a renderer made anew.
@@ -416,13 +423,17 @@ pub fn measure_noise(
         last = step.image;
     }
     let shown = y(&last);
-    let error = relative_noise(&shown, &mean, &whole) * 2.0;
-    run.preview_error_2s = (error * error - run.reference_noise * run.reference_noise)
+    let error = relative_noise(&shown, mean, whole) * 2.0;
+    run.preview_error_2s = without_noise(error, &[run.reference_noise]);
+    Ok(())
+}
+
+/// An RMS difference `error` with the independent noises `noises` (all
+/// relative RMS) taken out in quadrature, at least zero.
+pub(super) fn without_noise(error: f64, noises: &[f64]) -> f64 {
+    (error * error - noises.iter().map(|n| n * n).sum::<f64>())
         .max(0.0)
-        .sqrt();
-    run.reference = mean;
-    run.whole_mask = whole;
-    Ok(run)
+        .sqrt()
 }
 
 fn count(mask: &[bool]) -> usize {
