@@ -341,7 +341,7 @@ fn write_layered_exr(
 }
 
 /// The version of the part files [`render_part_to_file`] writes.
-const PART_FORMAT: &str = "2";
+const PART_FORMAT: &str = "3";
 
 /// Renders passes `passes` of the pixels in `tile` of `scene` into a part
 /// file at `path` (OpenEXR; see [`crate::render::parts`]): per pixel the

@@ -113,9 +113,9 @@ fn a_render_too_large_for_the_memory_limit_stops_with_a_message() {
     );
     let out = Command::new("sh").args(["-c", &command]).output().unwrap();
     let err = assert_one_line_error(&out, &["not enough memory", "16384×8192", "GiB"]);
-    // Sunset splats: film 61 bytes a pixel (exact XYZ sums 48, splats 12,
-    // plan 1), then 19 for the plan's arrays: 80 × 2²⁷ bytes.
-    assert!(err.contains("10.00 GiB"), "{err}");
+    // Sunset splats: film 37 bytes a pixel (exact XYZ sums 24, splats 12,
+    // plan 1), then 19 for the plan's arrays: 56 × 2²⁷ bytes.
+    assert!(err.contains("7.00 GiB"), "{err}");
     assert_eq!(listing(dir.path()), Vec::<String>::new());
 }
 

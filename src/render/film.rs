@@ -37,7 +37,7 @@ use super::adaptive::plan;
 pub use super::adaptive::MAX_SAMPLES_PER_PASS;
 use super::alloc::try_filled;
 use super::camera::{Mirror, MirrorAxis};
-use super::exact::ExactSum;
+use super::exact::{ExactPlane, ExactRow, ExactSum};
 use super::film_layers::{LayerSums, VarianceSums};
 use super::film_spectral::SpectralFilm;
 use super::parts::{pick, PartData, PassRange, Tile};
@@ -53,7 +53,7 @@ pub struct Film {
     pub height: u32,
     /// Weighted sum of XYZ (cd m⁻² for Y) over the row's passes, exact
     /// (so that parts of a render merge bit for bit, [`super::parts`]).
-    pub(crate) xyz_sum: Vec<[ExactSum; 3]>,
+    pub(crate) xyz_sum: ExactPlane,
     pub(crate) row_passes: Vec<u32>,
     /// Sum of the weights of the row's passes (one sample each).
     pub(crate) row_weights: Vec<ExactSum>,
@@ -106,7 +106,7 @@ impl Film {
         Ok(Self {
             width,
             height,
-            xyz_sum: try_filled(width as usize * height as usize, [ExactSum::ZERO; 3])?,
+            xyz_sum: ExactPlane::try_new(width as usize, height as usize)?,
             row_passes: try_filled(height as usize, 0)?,
             row_weights: try_filled(height as usize, ExactSum::ZERO)?,
             plan: Vec::new(),
@@ -135,7 +135,7 @@ impl Film {
     /// Bytes held by the film's buffers.
     pub fn buffer_bytes(&self) -> usize {
         use std::mem::size_of_val;
-        size_of_val(self.xyz_sum.as_slice())
+        self.xyz_sum.bytes()
             + size_of_val(self.row_passes.as_slice())
             + size_of_val(self.row_weights.as_slice())
             + size_of_val(self.plan.as_slice())
@@ -217,7 +217,7 @@ impl Film {
     /// gone from the row (`Self::drop_draft`) and the image is the camera
     /// samples' mean plus the splats'.
     fn mean(&self, index: usize) -> [f64; 3] {
-        self.mean_with(index, &|i| self.xyz_sum[i], &|_| true)
+        self.mean_with(index, &|i| self.xyz_sum.get(i), &|_| true)
     }
 
     /// [`Self::mean`] of the camera sums `sums(i)` (a part of the camera
@@ -259,9 +259,9 @@ impl Film {
 
     /// With splats, empties row `y`'s sums of the draft pass before its
     /// first full pass (see [`Self::mean`]).
-    pub(crate) fn drop_draft(row: &mut [[ExactSum; 3]], passes: u32, row_weight: &mut ExactSum) {
+    pub(crate) fn drop_draft(row: &mut ExactRow<'_>, passes: u32, row_weight: &mut ExactSum) {
         if passes == 1 {
-            row.fill([ExactSum::ZERO; 3]);
+            row.clear();
             *row_weight = ExactSum::ZERO;
         }
     }
@@ -274,7 +274,7 @@ impl Film {
             .mirror
             .map(|m| m.partner(index % w, index / w, w, h))
             .filter(|&p| p != index);
-        self.pixel_mean(index, partner, &|i| self.xyz_sum[i])
+        self.pixel_mean(index, partner, &|i| self.xyz_sum.get(i))
     }
 
     /// Mean XYZ of the camera samples of pixel `index` and of `partner`,
@@ -397,7 +397,7 @@ impl Film {
         sun.try_reserve_exact(self.height as usize)?;
         sun.resize(self.height as usize, Vec::new());
         self.layers = Some(LayerSums {
-            ground: try_filled(self.xyz_sum.len(), [ExactSum::ZERO; 3])?,
+            ground: ExactPlane::try_new(self.width as usize, self.height as usize)?,
             sun,
             centre_ground,
         });
@@ -416,9 +416,9 @@ impl Film {
         let w = self.width as usize;
         let n = self.xyz_sum.len();
         let sun = |i: usize| layers.sun_at(i, w);
-        let ground = |i: usize| layers.ground[i];
+        let ground = |i: usize| layers.ground.get(i);
         let sky = |i: usize| {
-            let (s, g, d) = (self.xyz_sum[i], ground(i), sun(i));
+            let (s, g, d) = (self.xyz_sum.get(i), ground(i), sun(i));
             [0, 1, 2].map(|c| s[c] - g[c] - d[c])
         };
         let in_ground = |i: usize| layers.centre_ground[i];
@@ -621,7 +621,15 @@ impl Film {
         PartData {
             passes,
             tile,
-            sums: pick(&self.xyz_sum, inside),
+            sums: (0..n)
+                .map(|i| {
+                    if inside(i) {
+                        self.xyz_sum.get(i)
+                    } else {
+                        [ExactSum::ZERO; 3]
+                    }
+                })
+                .collect(),
             weights: (0..n)
                 .map(|i| {
                     if inside(i) {
@@ -669,9 +677,7 @@ impl Film {
                     continue;
                 }
                 if !draft_only {
-                    for c in 0..3 {
-                        film.xyz_sum[i][c] += part.sums[i][c];
-                    }
+                    film.xyz_sum.add(i, part.sums[i]);
                     *weight += part.weights[i];
                 }
                 if splats {
@@ -718,11 +724,13 @@ mod tests {
         // Row 0's first full pass: the draft leaves, a sample of 3 comes in.
         let w = film.width as usize;
         Film::drop_draft(
-            &mut film.xyz_sum[..w],
+            &mut film.xyz_sum.row_mut(0),
             film.row_passes[0],
             &mut film.row_weights[0],
         );
-        film.xyz_sum[..w].fill([ExactSum::from_f64(3.0); 3]);
+        for x in 0..w {
+            film.xyz_sum.row_mut(0).add(x, [ExactSum::from_f64(3.0); 3]);
+        }
         film.row_weights[0] = ExactSum::from_f64(1.0);
         film.row_passes[0] = 2;
         assert_eq!(film.xyz(0, 0), [5.0; 3]);
@@ -730,7 +738,7 @@ mod tests {
         assert_eq!(film.xyz(0, 1), [2.0; 3]);
         // Later passes keep their samples.
         Film::drop_draft(
-            &mut film.xyz_sum[..w],
+            &mut film.xyz_sum.row_mut(0),
             film.row_passes[0],
             &mut film.row_weights[0],
         );
@@ -776,8 +784,9 @@ mod tests {
     /// luminances (X = Z = 0).
     fn film_of(luminance: &[f32], w: u32, h: u32, mirror: Option<Mirror>) -> Film {
         let mut film = Film::new(w, h).with_mirror(mirror);
-        for (sum, &v) in film.xyz_sum.iter_mut().zip(luminance) {
-            *sum = [0.0, f64::from(v), 0.0].map(ExactSum::from_f64);
+        for (i, &v) in luminance.iter().enumerate() {
+            film.xyz_sum
+                .add(i, [0.0, f64::from(v), 0.0].map(ExactSum::from_f64));
         }
         film.row_passes.fill(1);
         film.row_weights.fill(ExactSum::from_f64(1.0));

@@ -25,7 +25,7 @@
 //! minus the other two, exactly, so it needs no memory of its own. The
 //! sun's, non-zero on a few pixels only, are kept per row as a short list.
 
-use super::exact::ExactSum;
+use super::exact::{ExactPlane, ExactRow, ExactSum};
 
 /// The layers the film estimates from its paths, as named in
 /// [`crate::scene::OUTPUT_LAYERS`].
@@ -46,7 +46,7 @@ pub struct SampleSplit {
 pub(crate) struct LayerSums {
     /// Per pixel, the weighted XYZ sums of the camera samples whose ray
     /// meets the ground.
-    pub(crate) ground: Vec<[ExactSum; 3]>,
+    pub(crate) ground: ExactPlane,
     /// Per row, the columns where the disc was seen and their weighted
     /// XYZ sums of it.
     pub(crate) sun: Vec<Vec<(u32, [ExactSum; 3])>>,
@@ -57,7 +57,7 @@ pub(crate) struct LayerSums {
 
 /// One row's layer sums, for the thread that renders the row.
 pub(crate) struct LayerRow<'a> {
-    ground: &'a mut [[ExactSum; 3]],
+    ground: ExactRow<'a>,
     sun: &'a mut Vec<(u32, [ExactSum; 3])>,
 }
 
@@ -65,9 +65,8 @@ impl LayerRow<'_> {
     /// Adds a camera sample of weight `weight` at column `x`.
     pub(crate) fn add(&mut self, x: usize, weight: f64, xyz: [f64; 3], split: &SampleSplit) {
         if split.ground {
-            for (s, v) in self.ground[x].iter_mut().zip(xyz) {
-                *s += ExactSum::from_f64(weight * v);
-            }
+            self.ground
+                .add(x, xyz.map(|v| ExactSum::from_f64(weight * v)));
         } else if split.sun_xyz.iter().any(|&v| v != 0.0) {
             let column = x as u32;
             let at = self
@@ -86,16 +85,17 @@ impl LayerRow<'_> {
 
     /// Empties the row, as [`Film::drop_draft`] empties its XYZ.
     pub(crate) fn clear(&mut self) {
-        self.ground.fill([ExactSum::ZERO; 3]);
+        self.ground.clear();
         self.sun.clear();
     }
 }
 
 impl LayerSums {
-    /// Per row, the row's layer sums (the `ground` sums are `width` a row).
-    pub(crate) fn rows(&mut self, width: usize) -> Vec<LayerRow<'_>> {
+    /// Per row, the row's layer sums .
+    pub(crate) fn rows(&mut self) -> Vec<LayerRow<'_>> {
         self.ground
-            .chunks_mut(width)
+            .rows_mut()
+            .into_iter()
             .zip(self.sun.iter_mut())
             .map(|(ground, sun)| LayerRow { ground, sun })
             .collect()

@@ -72,10 +72,10 @@ impl Renderer {
             return 0;
         }
         let channels: usize = layers.iter().map(|l| channel_names(l).len()).sum();
-        // The path layers' sums: the ground's exact XYZ (48 bytes) and
-        // whether each pixel's centre sees the ground (the sun's few sums
-        // are left out).
-        let sums = if self.path_layers() { 48 + 1 } else { 0 }
+        // The path layers' sums: the ground's exact XYZ and whether each
+        // pixel's centre sees the ground (the sun's few sums are left out).
+        let exact = super::exact::ExactPlane::BYTES_PER_PIXEL as u64;
+        let sums = if self.path_layers() { exact + 1 } else { 0 }
             // The variance's pass and running sums (f64) and the pass's
             // splats (f32).
             + if self.variance_layer() { 5 * 8 + 4 } else { 0 };

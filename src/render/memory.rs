@@ -1,6 +1,7 @@
 //! How much memory a render needs, checked before any work, and the film
 //! allocated without aborting where it is not there.
 
+use super::exact::ExactPlane;
 use super::{film_spectral, Film, Renderer};
 
 /// A render's buffers could not be allocated.
@@ -56,7 +57,7 @@ impl Renderer {
     }
 
     /// About the most memory a render of this scene holds at once, bytes:
-    /// the film (exact XYZ sums, 48 bytes a pixel, [`super::exact`]; the
+    /// the film (exact XYZ sums, 24 bytes a pixel, [`super::exact`]; the
     /// splat layer's f32 sums, 12, where the renderer splats; the adaptive
     /// plan's byte) and, on top, the
     /// larger of the adaptive plan's working arrays (a pixel index, the
@@ -68,7 +69,9 @@ impl Renderer {
     /// integrator reads do not grow with the image and are left out.
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
-        let film = 48 + if self.plan.circle_splatting { 12 } else { 0 } + 1;
+        let film = ExactPlane::BYTES_PER_PIXEL as u64
+            + if self.plan.circle_splatting { 12 } else { 0 }
+            + 1;
         let planning = 8 + 4 + 4 + 2 + 1;
         let output = 12 + 3;
         let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {

@@ -459,7 +459,7 @@ impl Renderer {
         let with_layers = film.layers.is_some();
         let layer_rows: Vec<std::sync::Mutex<Option<film_layers::LayerRow<'_>>>> =
             match &mut film.layers {
-                Some(l) => l.rows(width).into_iter().map(|r| Some(r).into()).collect(),
+                Some(l) => l.rows().into_iter().map(|r| Some(r).into()).collect(),
                 None => film.row_passes.iter().map(|_| None.into()).collect(),
             };
         let variance_rows: Vec<std::sync::Mutex<Option<film_layers::VarianceRow<'_>>>> =
@@ -468,7 +468,8 @@ impl Renderer {
                 None => film.row_passes.iter().map(|_| None.into()).collect(),
             };
         film.xyz_sum
-            .par_chunks_mut(width)
+            .rows_mut()
+            .into_par_iter()
             .zip(film.row_passes.par_iter_mut())
             .zip(film.row_weights.par_iter_mut())
             .zip(film.row_planned_passes.par_iter_mut())
@@ -477,7 +478,7 @@ impl Renderer {
             // horizon's glow, the aureole): hand them out one at a time so
             // both threads stay busy to the pass's end.
             .with_max_len(1)
-            .for_each(|(y, (((row, passes), row_weight), planned_passes))| {
+            .for_each(|(y, (((mut row, passes), row_weight), planned_passes))| {
                 if cancelled() || *passes != pass {
                     return;
                 }
@@ -491,7 +492,7 @@ impl Renderer {
                     if *passes == 1 {
                         spectral.fill(0.0);
                     }
-                    Film::drop_draft(row, *passes, row_weight);
+                    Film::drop_draft(&mut row, *passes, row_weight);
                 }
                 let mut layer_row = layer_rows[y]
                     .lock()
@@ -510,7 +511,7 @@ impl Renderer {
                     Some(t) => (t.x as usize, (t.x + t.width) as usize),
                     None => (0, width),
                 };
-                for (x, sum) in row.iter_mut().enumerate().take(x1).skip(x0) {
+                for x in x0..x1 {
                     // Planned samples are numbered on from the unplanned
                     // passes' (one each), consecutively per pixel.
                     let (first, count) = match (planned, apart) {
@@ -529,6 +530,7 @@ impl Renderer {
                         Some(s) if self.camera.pixel_density_bounded(x as u32, y as u32) => s,
                         _ => &integrator,
                     };
+                    let mut sum = [ExactSum::ZERO; 3];
                     for sample in first..first + count {
                         let sampled = self.sample_pixel_lanes(
                             integrator,
@@ -557,6 +559,7 @@ impl Renderer {
                             }
                         }
                     }
+                    row.add(x, sum);
                     row_paths += count;
                 }
                 *passes += 1;
