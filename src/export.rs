@@ -36,7 +36,9 @@ pub enum ExportError {
 /// the camera paths per pixel on average (more under adaptive sampling),
 /// `skyrender:mirror_pairs` whether pixels were read with their mirror
 /// images in the sun's vertical plane (`columns` or `rows`: the image's
-/// mirrored axis; `none`), which doubles the samples behind each pixel.
+/// mirrored axis; `halves`: each pixel's two parts split at the sun's
+/// azimuth with their mirror images', [`crate::render::HalfMirror`];
+/// `none`), which doubles the samples behind each pixel.
 pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<(String, String)> {
     let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
     vec![
@@ -53,6 +55,7 @@ pub fn exr_metadata(scene: &Scene, spp: u32, paths: u64, discarded: u64) -> Vec<
             match crate::render::mirror_pairs(scene).map(|m| m.axis) {
                 Some(MirrorAxis::Columns) => "columns",
                 Some(MirrorAxis::Rows) => "rows",
+                None if crate::render::mirror_halves(scene).is_some() => "halves",
                 None => "none",
             }
             .into(),
@@ -347,7 +350,9 @@ const PART_FORMAT: &str = "3";
 /// file at `path` (OpenEXR; see [`crate::render::parts`]): per pixel the
 /// camera samples' weighted XYZ sums and their weight, exact (each a
 /// 128-bit [`ExactSum`] in four `UINT` channels, least significant word
-/// first: `sum.X.0` … `sum.X.3`, …, `weight.0` … `weight.3`), the splats'
+/// first: `sum.X.0` … `sum.X.3`, …, `weight.0` … `weight.3`; with a
+/// half mirror also `left.X.0` … and `left_weight.0` …, those of the
+/// samples drawn in the pixels' left parts), the splats'
 /// sums (`splat.X`…, f32, where the renderer splats) and the part's own
 /// image (`R`, `G`, `B`, for a look), with the
 /// scene, the passes, the tile and the counts a merge needs in the header.
@@ -389,10 +394,22 @@ pub fn render_part_to_file(
         }
     };
     push_exact("weight", &|i| part.weights[i]);
+    if !part.left_weights.is_empty() {
+        push_exact("left_weight", &|i| part.left_weights[i]);
+    }
     for (c, name) in ["X", "Y", "Z"].iter().enumerate() {
         push_exact(&format!("sum.{name}"), &|i| part.sums[i][c]);
+        if !part.left_sums.is_empty() {
+            push_exact(&format!("left.{name}"), &|i| part.left_sums[i][c]);
+        }
         if !part.splat_sums.is_empty() {
             channels.push((format!("splat.{name}"), plane(&|i| part.splat_sums[i][c])));
+        }
+        if !part.splat_left.is_empty() {
+            channels.push((
+                format!("splat_left.{name}"),
+                plane(&|i| part.splat_left[i][c]),
+            ));
         }
     }
     for (c, name) in ["R", "G", "B"].iter().enumerate() {
@@ -488,13 +505,24 @@ fn read_part(path: &Path) -> Result<Part, String> {
             .map(|i| ExactSum::from_words([0, 1, 2, 3].map(|k| planes[k][i])))
             .collect())
     };
-    let sums = {
-        let [x, y, z] = ["sum.X", "sum.Y", "sum.Z"].map(exact);
+    let exact_triple = |prefix: &str| -> Result<Vec<[ExactSum; 3]>, String> {
+        let [x, y, z] = ["X", "Y", "Z"].map(|c| exact(&format!("{prefix}.{c}")));
         let (x, y, z) = (x?, y?, z?);
-        (0..x.len()).map(|i| [x[i], y[i], z[i]]).collect()
+        Ok((0..x.len()).map(|i| [x[i], y[i], z[i]]).collect())
+    };
+    let sums = exact_triple("sum")?;
+    let (left_sums, left_weights) = if file.words.contains_key("left.X.0") {
+        (exact_triple("left")?, exact("left_weight")?)
+    } else {
+        (Vec::new(), Vec::new())
     };
     let splat_sums = if file.channels.contains_key("splat.X") {
         triple("splat")?
+    } else {
+        Vec::new()
+    };
+    let splat_left = if file.channels.contains_key("splat_left.X") {
+        triple("splat_left")?
     } else {
         Vec::new()
     };
@@ -504,7 +532,10 @@ fn read_part(path: &Path) -> Result<Part, String> {
             tile,
             sums,
             weights: exact("weight")?,
+            left_sums,
+            left_weights,
             splat_sums,
+            splat_left,
             splat_paths: count("skyrender:splat_paths")?,
             camera_discarded: count("skyrender:camera_discarded")?,
             splat_discarded: count("skyrender:splat_discarded")?,
@@ -549,12 +580,20 @@ pub fn merge_parts(paths: &[PathBuf], output: &Path) -> Result<Scene, String> {
     if splats && parts.iter().any(|p| p.data.splat_sums.is_empty()) {
         return Err("some parts have splats and some do not: parts of different builds".into());
     }
+    if crate::render::mirror_halves(&scene).is_some()
+        && parts.iter().any(|p| p.data.left_sums.is_empty())
+    {
+        return Err("some parts lack the sums of their pixels' left parts (the scene's sun is off the pixel grid): parts of different builds".into());
+    }
     let data: Vec<PartData> = parts.iter().map(|p| p.data.clone()).collect();
     let film = crate::render::Film::from_parts(
         width,
         height,
         spp,
-        crate::render::mirror_pairs(&scene),
+        (
+            crate::render::mirror_pairs(&scene),
+            crate::render::mirror_halves(&scene),
+        ),
         splats,
         &data,
     )

@@ -97,6 +97,18 @@ impl Rng {
         self
     }
 
+    /// The first two coordinates of point `index` (< 2¹⁶) of the Sobol
+    /// sequence Owen-scrambled for `pixel`, as [`Self::with_sobol_prefix`]
+    /// gives them (low bits from this generator), without the rest.
+    pub fn sobol_2d(&mut self, seed: u64, pixel: u64, index: u32) -> [f64; 2] {
+        debug_assert!(u64::from(index) < SOBOL_POINTS);
+        let scramble = mix64(seed ^ mix64(pixel ^ 0x50b0_1000)) as u32;
+        let point = sobol_burley::sample_4d(index, 0, scramble);
+        [0, 1].map(|k| {
+            f64::from(point[k]) + f64::from(self.next_u32() >> 2) * (1.0 / (1u64 << 53) as f64)
+        })
+    }
+
     /// Runs `f` with `values` (each in [0, 1)) served as its first uniforms,
     /// then the stream as before. A decision that needs the low-discrepancy
     /// prefix but comes after a variable number of draws takes its uniforms

@@ -83,23 +83,38 @@ fn render_writes_an_exr_with_scene_metadata() {
 fn no_mirror_reads_every_pixel_alone_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
     for (flags, pairs) in [
-        (&["--no-mirror"][..], "none"),
-        // 1° off the pixel grid (16 columns of 22.5°).
-        (&["--sun-azimuth", "271"][..], "none"),
-        (&[][..], "columns"),
+        (&["--no-mirror", "--spp", "2"][..], "none"),
+        // 1° off the pixel grid (16 columns of 22.5°): each pixel's halves
+        // with their mirror images', from three passes on.
+        (&["--sun-azimuth", "271", "--spp", "2"][..], "none"),
+        (&["--sun-azimuth", "271", "--spp", "3"][..], "halves"),
+        (
+            &["--sun-azimuth", "271", "--spp", "3", "--no-mirror"][..],
+            "none",
+        ),
+        (&["--spp", "2"][..], "columns"),
     ] {
         let path = dir.path().join("sky.exr");
         let mut args = vec![
             "render", "--preset", "sunset", "--width", "16", "--height", "8",
         ];
-        args.extend_from_slice(&["--spp", "2", "-o", path.to_str().unwrap()]);
+        args.extend_from_slice(&["-o", path.to_str().unwrap()]);
         args.extend_from_slice(flags);
         let out = skyrender(&args);
         assert!(out.status.success(), "{}", stderr(&out));
         let stdout = String::from_utf8_lossy(&out.stdout);
+        let said = match pairs {
+            "columns" => Some("read in mirror pairs"),
+            "halves" => Some("read in mirror halves"),
+            _ => None,
+        };
         assert_eq!(
-            stdout.contains("mirror pairs"),
-            pairs != "none",
+            stdout.contains("read in mirror"),
+            said.is_some(),
+            "{flags:?}: {stdout}"
+        );
+        assert!(
+            said.is_none_or(|s| stdout.contains(s)),
             "{flags:?}: {stdout}"
         );
         let image = exr::prelude::read_all_data_from_file(&path).unwrap();

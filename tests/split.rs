@@ -28,15 +28,36 @@ fn merge(dir: &Path, parts: &[PathBuf], name: &str) -> PathBuf {
     path
 }
 
+/// The arguments of a 64×32 render of `preset` with the sun at `azimuth`
+/// degrees, `spp` passes, adaptive sampling off.
+fn small_scene<'a>(preset: &'a str, azimuth: &'a str, spp: &'a str) -> [&'a str; 11] {
+    [
+        "--preset",
+        preset,
+        "--sun-azimuth",
+        azimuth,
+        "--width",
+        "64",
+        "--height",
+        "32",
+        "--spp",
+        spp,
+        "--no-adaptive",
+    ]
+}
+
 /// Tiles, adaptive sampling off: the merged file is the single render's,
 /// byte for byte — midday (no splats) in 4 bands, and sunset (splats along
-/// the circles of symmetry) in two explicit tiles and a band mix.
+/// the circles of symmetry) in two explicit tiles and a band mix; the sun
+/// at 250° too, off the columns' grid (mirror halves, their sums in the
+/// parts).
 #[test]
 fn tiles_merge_into_the_single_render_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    for (preset, tiles) in [
+    for (preset, azimuth, tiles) in [
         (
             "midday",
+            "180",
             vec![
                 "--tiles 4 --tile-index 0",
                 "--tiles 4 --tile-index 1",
@@ -46,20 +67,22 @@ fn tiles_merge_into_the_single_render_bit_for_bit() {
         ),
         (
             "sunset",
+            "270",
             vec!["--tile 0,0,48,16", "--tile 48,0,16,16", "--tile 0,16,64,16"],
         ),
+        (
+            "sunset",
+            "250",
+            vec!["--tile 0,0,48,16", "--tile 48,0,16,16", "--tile 0,16,64,16"],
+        ),
+        (
+            "midday",
+            "250",
+            vec!["--tiles 2 --tile-index 0", "--tiles 2 --tile-index 1"],
+        ),
     ] {
-        let scene = [
-            "--preset",
-            preset,
-            "--width",
-            "64",
-            "--height",
-            "32",
-            "--spp",
-            "4",
-            "--no-adaptive",
-        ];
+        let scene = small_scene(preset, azimuth, "4");
+        let preset = format!("{preset}{azimuth}");
         let single = render(dir.path(), &format!("{preset}.exr"), &scene, &[]);
         let parts: Vec<PathBuf> = tiles
             .iter()
@@ -85,35 +108,29 @@ fn tiles_merge_into_the_single_render_bit_for_bit() {
 #[test]
 fn pass_ranges_merge_into_the_single_render_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    let scene = [
-        "--preset",
-        "midday",
-        "--width",
-        "64",
-        "--height",
-        "32",
-        "--spp",
-        "6",
-        "--no-adaptive",
-    ];
-    let single = std::fs::read(render(dir.path(), "single.exr", &scene, &[])).unwrap();
-    for cuts in [
-        &["0..1", "1..4", "4..6"][..],
-        &["0..5", "5..6"],
-        &["0..3", "3..6"],
-    ] {
-        let parts: Vec<PathBuf> = cuts
-            .iter()
-            .map(|r| {
-                let name = format!("p{}.exr", r.replace("..", "_"));
-                render(dir.path(), &name, &scene, &["--passes", r])
-            })
-            .collect();
-        let merged = merge(dir.path(), &parts, "merged.exr");
-        assert!(
-            std::fs::read(&merged).unwrap() == single,
-            "{cuts:?}: the merged passes differ from the single render"
-        );
+    // The sun at 180° (mirror pairs) and at 250° (mirror halves: the
+    // parts' samples keep their numbers, so their parts too).
+    for azimuth in ["180", "250"] {
+        let scene = small_scene("midday", azimuth, "6");
+        let single = std::fs::read(render(dir.path(), "single.exr", &scene, &[])).unwrap();
+        for cuts in [
+            &["0..1", "1..4", "4..6"][..],
+            &["0..5", "5..6"],
+            &["0..3", "3..6"],
+        ] {
+            let parts: Vec<PathBuf> = cuts
+                .iter()
+                .map(|r| {
+                    let name = format!("p{}.exr", r.replace("..", "_"));
+                    render(dir.path(), &name, &scene, &["--passes", r])
+                })
+                .collect();
+            let merged = merge(dir.path(), &parts, "merged.exr");
+            assert!(
+                std::fs::read(&merged).unwrap() == single,
+                "{azimuth}°, {cuts:?}: the merged passes differ from the single render"
+            );
+        }
     }
 }
 

@@ -339,10 +339,18 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     (run.whole_pixels, run.ground_pixels) = (count(&whole), count(&ground));
     run.noise_whole = relative_noise(&images[0], &images[1], &whole);
     run.noise_ground = relative_noise(&images[0], &images[1], &ground);
-    let partner = crate::render::mirror_pairs(scene)
-        .map(|m| move |x: u32, y: u32| m.partner(x as usize, y as usize, w as usize, h as usize));
-    let partner = partner.as_ref().map(|p| p as &dyn Fn(u32, u32) -> usize);
-    let c = correlations(&images, &whole, (w, h), &camera, sun, partner);
+    let (wu, hu) = (w as usize, h as usize);
+    let pairs = crate::render::mirror_pairs(scene);
+    let halves = crate::render::mirror_halves(scene);
+    let partners = |x: u32, y: u32| {
+        let (x, y) = (x as usize, y as usize);
+        match (pairs, halves) {
+            (Some(m), _) => [m.partner(x, y, wu, hu); 2],
+            (None, Some(m)) => [m.left_partner(x, wu), m.right_partner(x, wu)].map(|p| y * wu + p),
+            (None, None) => [y * wu + x; 2],
+        }
+    };
+    let c = correlations(&images, &whole, (w, h), &camera, sun, &partners);
     (
         run.row_correlation,
         run.column_correlation,
@@ -460,7 +468,8 @@ pub fn whole_mask(
 /// between horizontal neighbours, vertical neighbours and pixels at the
 /// same angle from `sun` (binned by the image's pixel height in angle,
 /// each paired with the next of its bin that is neither a neighbour nor
-/// its mirror partner), over `mask`; pairs of mirror partners are left
+/// its mirror partner), over `mask`; pairs of mirror partners (pixels
+/// `partners(x, y)` of pixel (x, y); itself where it has none) are left
 /// out. r = Σ uᵢuⱼ / √(Σ uᵢ² Σ uⱼ²): 0 for independent noise.
 pub fn correlations(
     images: &[Vec<f64>],
@@ -468,7 +477,7 @@ pub fn correlations(
     (width, height): (u32, u32),
     camera: &Camera,
     sun: DVec3,
-    partner: Option<&dyn Fn(u32, u32) -> usize>,
+    partners: &dyn Fn(u32, u32) -> [usize; 2],
 ) -> (f64, f64, f64) {
     let (w, h) = (width as usize, height as usize);
     let u: Vec<Option<f64>> = (0..w * h)
@@ -477,11 +486,11 @@ pub fn correlations(
             (mask[i] && a + b > 0.0).then(|| (a - b) / (a + b))
         })
         .collect();
-    let partner_of = |i: usize| partner.map(|p| p((i % w) as u32, (i / w) as u32));
+    let partner_of = |i: usize, j: usize| partners((i % w) as u32, (i / w) as u32).contains(&j);
     let correlation = |pairs: &mut dyn Iterator<Item = (usize, usize)>| {
         let (mut uv, mut uu, mut vv) = (0.0, 0.0, 0.0);
         for (i, j) in pairs {
-            if partner_of(i) == Some(j) {
+            if partner_of(i, j) {
                 continue;
             }
             if let (Some(a), Some(b)) = (u[i], u[j]) {
@@ -517,7 +526,7 @@ pub fn correlations(
         for (k, &i) in pixels.iter().enumerate() {
             if let Some(&j) = pixels[k + 1..]
                 .iter()
-                .find(|&&j| !near(i, j) && partner_of(i) != Some(j))
+                .find(|&&j| !near(i, j) && !partner_of(i, j))
             {
                 pairs.push((i, j));
             }
@@ -550,6 +559,7 @@ mod tests {
         let (camera, sun) = (renderer.camera().clone(), renderer.sun_direction());
         let (w, h) = (128usize, 64usize);
         let mask = vec![true; w * h];
+        let alone = |x: u32, y: u32| [y as usize * w + x as usize; 2];
         let pair = |e: &dyn Fn(usize) -> f64| -> Vec<Vec<f64>> {
             vec![
                 (0..w * h).map(|i| 1.0 + 0.1 * e(i)).collect(),
@@ -558,14 +568,14 @@ mod tests {
         };
         // White noise: every correlation within a few 1/√pairs of 0.
         let white = pair(&noise);
-        let (r, c, k) = correlations(&white, &mask, (128, 64), &camera, sun, None);
+        let (r, c, k) = correlations(&white, &mask, (128, 64), &camera, sun, &alone);
         for v in [r, c, k] {
             assert!(v.abs() < 0.05, "{r} {c} {k}");
         }
         // Pairs of columns share their noise: the rows' correlation is about
         // a half (every other horizontal pair shares it), the columns' none.
         let doubled = pair(&|i: usize| noise(i - i % 2));
-        let (r, c, _) = correlations(&doubled, &mask, (128, 64), &camera, sun, None);
+        let (r, c, _) = correlations(&doubled, &mask, (128, 64), &camera, sun, &alone);
         assert!((r - 0.5).abs() < 0.1 && c.abs() < 0.05, "{r} {c}");
         // Noise that depends on the angle from the sun alone: the circles'.
         let theta = |i: usize| {
@@ -578,7 +588,7 @@ mod tests {
             noise(bin + 7)
         };
         let circular = pair(&theta);
-        let (_, _, k) = correlations(&circular, &mask, (128, 64), &camera, sun, None);
+        let (_, _, k) = correlations(&circular, &mask, (128, 64), &camera, sun, &alone);
         assert!(k > 0.9, "{k}");
     }
 }

@@ -409,6 +409,8 @@ fn report(
     // Mirror pairs double the samples behind each pixel.
     if crate::render::mirror_pairs(scene).is_some() {
         notes.push("read in mirror pairs".to_owned());
+    } else if crate::render::mirror_halves(scene).is_some() {
+        notes.push("read in mirror halves".to_owned());
     }
     let adaptive = if notes.is_empty() {
         String::new()

@@ -38,7 +38,22 @@ const BINS: usize = ((LOG2_OFFSET + 129.0) * BINS_PER_OCTAVE) as usize;
 /// sun's disc or one firefly in a window makes its σⱼ millions of times the
 /// rest, and a mean would then give every other pixel one sample.
 pub(super) fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
-    let spread = spreads(luminance, width, height);
+    plan_linked(luminance, width, height, &|x| [x, x])
+}
+
+/// [`plan`] for an image whose pixel (x, y) is read together with pixels
+/// (`linked(x)`[k], y) (a [`super::HalfMirror`]'s partners): σᵢ leaves
+/// those out of its window too, and σ̃ᵢ is the median over the pixels
+/// whose windows miss pixel i *and* its linked pixels — so the plan of
+/// pixel i reads none of the values read with it. (The partners' own
+/// plans leave out pixel i in turn: linked both ways.)
+pub(super) fn plan_linked(
+    luminance: &[f32],
+    width: usize,
+    height: usize,
+    linked: &(dyn Fn(usize) -> [usize; 2] + Sync),
+) -> Vec<u8> {
+    let spread = spreads(luminance, width, height, linked);
     let bins: Vec<u16> = spread.iter().map(|&s| spread_bin(s)).collect();
     // cumulative[b] = positive spreads in bins ≤ b.
     let mut cumulative = vec![0u32; BINS];
@@ -53,15 +68,28 @@ pub(super) fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
     let mut plan = vec![1u8; width * height];
     plan.par_chunks_mut(width).enumerate().for_each(|(y, row)| {
         let rows = y.saturating_sub(r)..(y + r + 1).min(height);
-        let mut window = [0u16; (2 * PLAN_RADIUS + 1) * (2 * PLAN_RADIUS + 1)];
+        let mut window = [0u16; 3 * (2 * PLAN_RADIUS + 1) * (2 * PLAN_RADIUS + 1)];
         for (x, m) in row.iter_mut().enumerate() {
-            let columns = x.saturating_sub(r)..(x + r + 1).min(width);
+            // The columns of the windows about pixel x and its linked
+            // pixels, as disjoint ranges.
+            let mut spans = [x, linked(x)[0], linked(x)[1]]
+                .map(|c| c.saturating_sub(r)..(c + r + 1).min(width));
+            spans.sort_by_key(|s| s.start);
+            let mut columns: Vec<std::ops::Range<usize>> = Vec::with_capacity(3);
+            for span in spans {
+                match columns.last_mut() {
+                    Some(last) if span.start <= last.end => last.end = last.end.max(span.end),
+                    _ => columns.push(span),
+                }
+            }
             let mut n = 0;
             for yy in rows.clone() {
-                for &b in &bins[yy * width + columns.start..yy * width + columns.end] {
-                    if b > 0 {
-                        window[n] = b;
-                        n += 1;
+                for span in &columns {
+                    for &b in &bins[yy * width + span.start..yy * width + span.end] {
+                        if b > 0 {
+                            window[n] = b;
+                            n += 1;
+                        }
                     }
                 }
             }
@@ -98,11 +126,17 @@ pub(super) fn plan(luminance: &[f32], width: usize, height: usize) -> Vec<u8> {
 
 /// The standard deviation σᵢ of the luminance over each pixel's window of
 /// (2R+1)² pixels, R = [`PLAN_RADIUS`], clipped at the borders, *without*
-/// the pixel itself (0 with fewer than two others). Each window is read
+/// the pixel itself and the pixels `linked` to it (0 with fewer than two
+/// others). Each window is read
 /// afresh, its centre skipped: pixel i's value enters no sum of σᵢ, not even
 /// through rounding (sliding sums that add and later subtract it would keep
 /// a trace of it; so would subtracting it from a total).
-fn spreads(luminance: &[f32], width: usize, height: usize) -> Vec<f32> {
+fn spreads(
+    luminance: &[f32],
+    width: usize,
+    height: usize,
+    linked: &(dyn Fn(usize) -> [usize; 2] + Sync),
+) -> Vec<f32> {
     let r = PLAN_RADIUS;
     let mut spread = vec![0.0f32; width * height];
     spread
@@ -112,13 +146,21 @@ fn spreads(luminance: &[f32], width: usize, height: usize) -> Vec<f32> {
             let rows = y.saturating_sub(r)..(y + r + 1).min(height);
             for (x, spread) in row.iter_mut().enumerate() {
                 let columns = x.saturating_sub(r)..(x + r + 1).min(width);
+                let [a, b] = linked(x);
+                let left_out =
+                    |(xx, yy): (usize, usize)| yy == y && (xx == x || xx == a || xx == b);
                 let others = || {
                     rows.clone()
                         .flat_map(|yy| columns.clone().map(move |xx| (xx, yy)))
-                        .filter(|&p| p != (x, y))
+                        .filter(|&p| !left_out(p))
                         .map(|(xx, yy)| f64::from(luminance[yy * width + xx]))
                 };
-                let n = (rows.len() * columns.len() - 1) as f64;
+                let mut left = [x, a, b];
+                left.sort_unstable();
+                let dropped = (0..3)
+                    .filter(|&k| (k == 0 || left[k] != left[k - 1]) && columns.contains(&left[k]))
+                    .count();
+                let n = (rows.len() * columns.len() - dropped) as f64;
                 if n < 2.0 {
                     continue;
                 }
@@ -207,13 +249,13 @@ pub(super) mod tests {
         // its plan; its neighbours' plans may change.
         let (w, h) = (30, 20);
         let image: Vec<f32> = (0..w * h).map(|i| 50.0 + 30.0 * hash01(i)).collect();
-        let (spread, m) = (spreads(&image, w, h), plan(&image, w, h));
+        let (spread, m) = (spreads(&image, w, h, &|x| [x, x]), plan(&image, w, h));
         let r = PLAN_RADIUS;
         for i in [0, 7 * w + 11, w * h - 1, 3 * w, 12 * w + 29] {
             for v in [0.0, 1e6, 1e9, f32::MAX] {
                 let mut changed = image.clone();
                 changed[i] = v;
-                let after = spreads(&changed, w, h);
+                let after = spreads(&changed, w, h, &|x| [x, x]);
                 let far = |j: usize| (i % w).abs_diff(j % w) > r || (i / w).abs_diff(j / w) > r;
                 for j in (0..w * h).filter(|&j| j == i || far(j)) {
                     assert_eq!(
@@ -228,6 +270,42 @@ pub(super) mod tests {
         let mut bright = image.clone();
         bright[7 * w + 11] = 1e6;
         assert_ne!(plan(&bright, w, h)[7 * w + 12], m[7 * w + 12]);
+    }
+
+    #[test]
+    fn a_pixels_linked_plan_ignores_its_partners_values() {
+        // With a half mirror (K = 13 on a 30-wide image) pixel (x, y) is read
+        // with pixels (13 − x, y) and (12 − x, y) (mod 30): its plan must not
+        // read theirs either, nor theirs its — whatever any of the three
+        // holds, near the mirror's line (columns 6, 7), its far side (21,
+        // 22) and elsewhere.
+        let (w, h) = (30usize, 20usize);
+        let linked = |x: usize| [(13 + w - x) % w, (12 + w - x) % w];
+        let image: Vec<f32> = (0..w * h).map(|i| 50.0 + 30.0 * hash01(i)).collect();
+        let m = plan_linked(&image, w, h, &linked);
+        for y in [0, 9, 19] {
+            for x in [0, 3, 6, 7, 8, 21, 22, 29] {
+                let i = y * w + x;
+                let [a, b] = linked(x);
+                for j in [i, y * w + a, y * w + b] {
+                    for v in [0.0, 1e6, f32::MAX] {
+                        let mut changed = image.clone();
+                        changed[j] = v;
+                        let after = plan_linked(&changed, w, h, &linked);
+                        assert_eq!(after[i], m[i], "pixel ({x}, {y}), pixel {j} set to {v}");
+                    }
+                }
+            }
+        }
+        // Unlinked, the same plan as `plan`.
+        assert_eq!(plan_linked(&image, w, h, &|x| [x, x]), plan(&image, w, h));
+        // A bright partner changes the plan where it is not left out.
+        let mut bright = image.clone();
+        bright[9 * w + 13] = 1e6;
+        assert_ne!(
+            plan(&bright, w, h)[9 * w + 12],
+            plan(&image, w, h)[9 * w + 12]
+        );
     }
 
     #[test]
@@ -247,7 +325,7 @@ pub(super) mod tests {
                 }
             })
             .collect();
-        let spread = spreads(&image, w, h);
+        let spread = spreads(&image, w, h, &|x| [x, x]);
         assert!(spread[(10 + PLAN_RADIUS) * w..].iter().all(|&s| s == 0.0));
         let m = plan(&image, w, h);
         for y in 10 + PLAN_RADIUS..h {

@@ -170,6 +170,24 @@ impl Camera {
         }
     }
 
+    /// The reflection in the vertical plane of azimuth `sun_azimuth_deg`
+    /// as a [`HalfMirror`]: an equirect image whose 2u☉ × width is not a
+    /// whole number (where it is, [`Self::mirror`]); `None` otherwise.
+    pub fn half_mirror(&self, sun_azimuth_deg: f64) -> Option<HalfMirror> {
+        if self.kind != CameraKind::Equirect || self.width < 1.0 || self.height < 1.0 {
+            return None;
+        }
+        let u = (sun_azimuth_deg / 360.0 + 0.5).rem_euclid(1.0);
+        let t = 2.0 * u * self.width;
+        let centre = t.floor();
+        let split = t - centre;
+        // Within 1e-9 of a whole number [`Self::mirror`] takes it.
+        (split > 1e-9 && split < 1.0 - 1e-9 && t.is_finite()).then(|| HalfMirror {
+            centre: (centre as u32) % self.width as u32,
+            split,
+        })
+    }
+
     /// Image area per solid angle at direction `dir` (unit), pixels² sr⁻¹:
     /// a pixel's value is the mean over its square of the radiance seen
     /// through each point, so light arriving from a solid angle dω around
@@ -298,6 +316,85 @@ pub enum MirrorAxis {
     Columns,
     /// Row y ↦ (c − 1 − y) mod height, columns unchanged.
     Rows,
+}
+
+/// The reflection of an equirect image in the sun's vertical plane where
+/// the sun's azimuth is *not* on a pixel's edge or centre: column position
+/// t ↦ K + g − t (mod width), K = `centre` whole, 0 < g = `split` < 1. It
+/// takes no pixel onto a pixel, but each pixel's two parts split at g onto
+/// parts of two pixels exactly: [x, x + g) onto [x′, x′ + g) of
+/// x′ = K − x (its left partner), [x + g, x + 1) onto [x″ + g, x″ + 1) of
+/// x″ = K − 1 − x (its right partner). Each sample of a pixel is drawn in
+/// one part, chosen by its number alone ([`Self::in_left`]), so each part
+/// holds a fixed number of samples, uniform over it; a film that keeps the
+/// sums of each pixel's left samples reads each part with its partner's
+/// (`super::film`). The counts follow the parts' widths (stratified
+/// sampling in proportion); parts drawn by position instead would add the
+/// binomial spread of their counts to every pixel, more than the noise
+/// the pairing takes out where the sky's estimates are good.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HalfMirror {
+    /// K, 0 ≤ K < width.
+    pub centre: u32,
+    /// g, where each pixel is split, as a fraction of its width from its
+    /// left edge.
+    pub split: f64,
+}
+
+impl HalfMirror {
+    /// The column whose left part column `x` of `width`'s left part maps to.
+    pub fn left_partner(self, x: usize, width: usize) -> usize {
+        (self.centre as usize + width - x % width) % width
+    }
+
+    /// The column whose right part column `x` of `width`'s right part maps
+    /// to.
+    pub fn right_partner(self, x: usize, width: usize) -> usize {
+        (self.centre as usize + 2 * width - 1 - x % width) % width
+    }
+
+    /// Whether a pixel's sample number `sample` is drawn in its left part:
+    /// the draft (0) in the wider part; of the full samples 1, …, n,
+    /// [`Self::left_count`]`(n)` in the left part.
+    pub fn in_left(self, sample: u64) -> bool {
+        if sample == 0 {
+            return self.split >= 0.5;
+        }
+        self.left_count(sample) > self.left_count(sample - 1)
+    }
+
+    /// Of full samples 1, …, n, how many are drawn in the left part: the
+    /// first in the wider part, then round(n g) kept within 1…n − 1, so
+    /// from the second on each part holds at least one. Rises by 0 or 1
+    /// with n (a rounded line, clamped between two such).
+    pub fn left_count(self, n: u64) -> u64 {
+        match n {
+            0 => 0,
+            1 => u64::from(self.split >= 0.5),
+            _ => ((n as f64 * self.split).round() as u64).clamp(1, n - 1),
+        }
+    }
+
+    /// The index of full sample `sample` ≥ 1 among its part's full
+    /// samples (0 for the first).
+    pub fn part_index(self, sample: u64) -> u64 {
+        if self.in_left(sample) {
+            self.left_count(sample) - 1
+        } else {
+            sample - self.left_count(sample) - 1
+        }
+    }
+
+    /// Where across its pixel (0–1 from the left edge) a sample drawn in
+    /// the left part (`left`) or the right one lies, at `xi` ∈ [0, 1)
+    /// within the part.
+    pub fn position(self, left: bool, xi: f64) -> f64 {
+        if left {
+            self.split * xi
+        } else {
+            self.split + (1.0 - self.split) * xi
+        }
+    }
 }
 
 /// A reflection of the image onto itself that takes every pixel's footprint
@@ -532,6 +629,70 @@ mod tests {
     fn reflect(d: DVec3, azimuth_deg: f64) -> DVec3 {
         let n = direction_from_az_el(azimuth_deg + 90.0, 0.0);
         d - 2.0 * d.dot(n) * n
+    }
+
+    #[test]
+    fn the_half_mirror_takes_each_pixel_part_onto_its_reflection() {
+        // Suns off the pixel grid (a real date's), at even and odd widths:
+        // the direction through any point of a pixel's left (right) part,
+        // reflected in the sun's vertical plane, is the direction through
+        // the reflected point of its left (right) partner, in the same
+        // part.
+        let mut checked = 0;
+        for (w, h) in [(256u32, 128u32), (15, 9), (64, 32)] {
+            for sun_azimuth_deg in [60.0, 240.0, 123.456, 359.9, 0.3] {
+                let c = camera(CameraKind::Equirect, w, h);
+                assert!(
+                    c.mirror(sun_azimuth_deg).is_none() == c.half_mirror(sun_azimuth_deg).is_some()
+                );
+                let Some(m) = c.half_mirror(sun_azimuth_deg) else {
+                    continue;
+                };
+                for i in 0..499u32 {
+                    let (x, y) = ((i * 37) % w, (i * 11) % h);
+                    let (fx, fy) = (f64::from(i % 13) / 13.0 + 0.01, f64::from(i % 5) / 5.0);
+                    let d = c.direction(f64::from(x) + fx, f64::from(y) + fy).unwrap();
+                    let (partner, rx) = if fx < m.split {
+                        (m.left_partner(x as usize, w as usize), m.split - fx)
+                    } else {
+                        (m.right_partner(x as usize, w as usize), 1.0 + m.split - fx)
+                    };
+                    assert!((0.0..=1.0).contains(&rx), "{rx}");
+                    assert_eq!(rx < m.split, fx < m.split, "the same part");
+                    let r = c.direction(partner as f64 + rx, f64::from(y) + fy).unwrap();
+                    let expected = reflect(d, sun_azimuth_deg);
+                    assert!(
+                        (r - expected).length() < 1e-8,
+                        "{w}×{h} az {sun_azimuth_deg} x {x} + {fx}"
+                    );
+                    checked += 1;
+                }
+            }
+        }
+        assert!(checked > 2000, "{checked}");
+    }
+
+    #[test]
+    fn half_mirror_parts_take_samples_in_proportion_from_the_second() {
+        for split in [0.01, 0.3, 0.5, 0.77, 0.999] {
+            let m = HalfMirror { centre: 3, split };
+            let mut left = 0;
+            for n in 1..2000u64 {
+                left += u64::from(m.in_left(n));
+                assert_eq!(left, m.left_count(n), "g {split}, n {n}");
+                if n >= 2 {
+                    assert!(left >= 1 && left < n, "g {split}: {left} of {n}");
+                }
+                if n as f64 >= 1.0 / split.min(1.0 - split) {
+                    assert!(
+                        (left as f64 - n as f64 * split).abs() <= 1.0,
+                        "g {split}, n {n}: {left}"
+                    );
+                }
+            }
+            assert_eq!(m.in_left(0), split >= 0.5);
+            assert!(m.position(true, 0.999) < split && m.position(false, 0.0) >= split);
+        }
     }
 
     #[test]

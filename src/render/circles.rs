@@ -603,6 +603,7 @@ impl CircleSplatter {
             if xyz.iter().all(|v| v.is_finite()) {
                 out.push(Splat {
                     pixel: (py as u32) * width as u32 + px as u32,
+                    column_offset: px.fract() as f32,
                     xyz,
                     lanes: spectral,
                 });

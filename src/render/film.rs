@@ -32,11 +32,24 @@
 //! pixel at no cost, unbiased because each pixel's samples are. The plan
 //! then works on the *folded* image (one value per pair) and gives a pair's
 //! pixels the same count, read from other pairs only.
+//!
+//! **Mirror halves.** Where the sun's azimuth falls between an equirect
+//! image's columns (a real date's sun, most often), the reflection takes no
+//! pixel onto a pixel, but it takes each pixel's two parts, split at the
+//! same fraction g of every pixel, onto parts of two pixels exactly
+//! ([`HalfMirror`]). Each sample is drawn in one part chosen by its number
+//! alone, in proportion to the parts' widths, so each part's samples are
+//! uniform over it and their count fixed in advance; the film keeps each
+//! pixel's sums and weight of its left part's samples (and the splats that
+//! landed there) and reads the pixel as g × the left part's mean with its
+//! left partner's plus (1 − g) × the right part's with its right partner's.
+//! Each term is unbiased; the plan reads each pixel's own samples and
+//! leaves a pixel's partners out of its plan as it leaves out the pixel.
 
 use super::adaptive::plan;
 pub use super::adaptive::MAX_SAMPLES_PER_PASS;
 use super::alloc::try_filled;
-use super::camera::{Mirror, MirrorAxis};
+use super::camera::{HalfMirror, Mirror, MirrorAxis};
 use super::exact::{ExactPlane, ExactRow, ExactSum};
 use super::film_layers::{LayerSums, VarianceSums};
 use super::film_spectral::SpectralFilm;
@@ -69,10 +82,23 @@ pub struct Film {
     pub(crate) splat_discarded: u64,
     /// Pixels read together with their mirror images; `None`: each alone.
     pub(crate) mirror: Option<Mirror>,
+    /// Pixel parts read together with their mirror images, where the
+    /// mirror takes parts of pixels onto parts ([`HalfMirror`]); `None`:
+    /// none.
+    pub(crate) halves: Option<HalfMirror>,
+    /// With `halves`, the weighted XYZ sums of the samples drawn in each
+    /// pixel's left part; empty without.
+    pub(crate) left_sum: ExactPlane,
+    /// With `halves`, the total weight of those samples (sums of the
+    /// passes' weights, 1 and powers of ½: exact in an f64); empty without.
+    pub(crate) left_weight: Vec<f64>,
     /// Sums of the splats of [`super::circles`] (empty unless the renderer
     /// splats): each pixel's light scattered more than once in the air, ×
     /// the number of paths splatted.
     pub(crate) splat_sum: Vec<[f32; 3]>,
+    /// With `halves` and splats, the part of `splat_sum` that landed in
+    /// each pixel's left part; empty otherwise.
+    pub(crate) splat_left: Vec<[f32; 3]>,
     /// Paths splatted so far (the splat sums' divisor).
     pub(crate) splat_paths: u64,
     /// The splats' point density learned from the passes so far.
@@ -114,7 +140,11 @@ impl Film {
             discarded: 0,
             splat_discarded: 0,
             mirror: None,
+            halves: None,
+            left_sum: ExactPlane::default(),
+            left_weight: Vec::new(),
             splat_sum: Vec::new(),
+            splat_left: Vec::new(),
             splat_paths: 0,
             learned_points: super::circles::LearnedPoints::default(),
             first_pass: 0,
@@ -129,6 +159,9 @@ impl Film {
     /// The film with a layer for the splats of [`super::circles`].
     pub(crate) fn try_with_splats(mut self) -> Result<Self, std::collections::TryReserveError> {
         self.splat_sum = try_filled(self.xyz_sum.len(), [0.0; 3])?;
+        if self.halves.is_some() {
+            self.splat_left = try_filled(self.xyz_sum.len(), [0.0; 3])?;
+        }
         Ok(self)
     }
 
@@ -136,11 +169,14 @@ impl Film {
     pub fn buffer_bytes(&self) -> usize {
         use std::mem::size_of_val;
         self.xyz_sum.bytes()
+            + self.left_sum.bytes()
+            + size_of_val(self.left_weight.as_slice())
             + size_of_val(self.row_passes.as_slice())
             + size_of_val(self.row_weights.as_slice())
             + size_of_val(self.plan.as_slice())
             + size_of_val(self.row_planned_passes.as_slice())
             + size_of_val(self.splat_sum.as_slice())
+            + size_of_val(self.splat_left.as_slice())
             + self
                 .spectral
                 .as_ref()
@@ -158,6 +194,17 @@ impl Film {
             let sum = &mut self.splat_sum[s.pixel as usize];
             for (v, x) in sum.iter_mut().zip(s.xyz) {
                 *v += x as f32;
+            }
+        }
+        if let Some(halves) = self.halves.filter(|_| !self.splat_left.is_empty()) {
+            for s in splats
+                .iter()
+                .filter(|s| f64::from(s.column_offset) < halves.split)
+            {
+                let sum = &mut self.splat_left[s.pixel as usize];
+                for (v, x) in sum.iter_mut().zip(s.xyz) {
+                    *v += x as f32;
+                }
             }
         }
         if let Some(variance) = &mut self.variance {
@@ -217,6 +264,9 @@ impl Film {
     /// gone from the row (`Self::drop_draft`) and the image is the camera
     /// samples' mean plus the splats'.
     fn mean(&self, index: usize) -> [f64; 3] {
+        if self.halves.is_some() {
+            return self.halves_mean(index);
+        }
         self.mean_with(index, &|i| self.xyz_sum.get(i), &|_| true)
     }
 
@@ -269,6 +319,9 @@ impl Film {
     /// Mean XYZ of pixel `index`'s camera samples (row-major), with its
     /// mirror image's where the film has a mirror; 0 before the first pass.
     fn camera_mean(&self, index: usize) -> [f64; 3] {
+        if self.halves.is_some() {
+            return self.halves_camera_mean(index, &|_| true);
+        }
         let (w, h) = (self.width as usize, self.height as usize);
         let partner = self
             .mirror
@@ -279,7 +332,7 @@ impl Film {
 
     /// Mean XYZ of the camera samples of pixel `index` and of `partner`,
     /// their sums read by `sums`.
-    fn pixel_mean(
+    pub(super) fn pixel_mean(
         &self,
         index: usize,
         partner: Option<usize>,
@@ -333,12 +386,25 @@ impl Film {
     /// Once only: a plan changed later would re-weight the passes before it
     /// (does nothing on a planned film). With a mirror, on the folded image:
     /// both pixels of a pair get the count planned for their pair, from the
-    /// other pairs' means.
+    /// other pairs' means. With halves, from each pixel's own mean, each
+    /// pixel's plan leaving out its partners too
+    /// ([`super::adaptive::plan_linked`]).
     pub(crate) fn plan_samples(&mut self) {
         if self.is_planned() {
             return;
         }
         let (w, h) = (self.width as usize, self.height as usize);
+        if let Some(halves) = self.halves {
+            // Each pixel's own samples alone: read with its partners, its
+            // value would carry theirs into the plans about it.
+            let luminance: Vec<f32> = (0..w * h)
+                .map(|i| self.halves_camera_mean(i, &|p| p == i)[1] as f32)
+                .collect();
+            self.plan = super::adaptive::plan_linked(&luminance, w, h, &|x| {
+                [halves.left_partner(x, w), halves.right_partner(x, w)]
+            });
+            return;
+        }
         // The folded image's pixels as (folded width, folded height, pixel
         // index in the film per folded pixel).
         let (fw, fh, pixels): (usize, usize, Vec<usize>) = match self.mirror {
@@ -618,15 +684,32 @@ impl Film {
             .unwrap_or_else(|| Tile::whole(self.width, self.height));
         let inside = |i: usize| tile.contains((i % w) as u32, (i / w) as u32);
         let n = self.xyz_sum.len();
+        let picked = |plane: &ExactPlane| -> Vec<[ExactSum; 3]> {
+            (0..n)
+                .map(|i| {
+                    if inside(i) {
+                        plane.get(i)
+                    } else {
+                        [ExactSum::ZERO; 3]
+                    }
+                })
+                .collect()
+        };
         PartData {
             passes,
             tile,
-            sums: (0..n)
+            sums: picked(&self.xyz_sum),
+            left_sums: if self.halves.is_some() {
+                picked(&self.left_sum)
+            } else {
+                Vec::new()
+            },
+            left_weights: (0..self.left_weight.len())
                 .map(|i| {
                     if inside(i) {
-                        self.xyz_sum.get(i)
+                        ExactSum::from_f64(self.left_weight[i])
                     } else {
-                        [ExactSum::ZERO; 3]
+                        ExactSum::ZERO
                     }
                 })
                 .collect(),
@@ -640,6 +723,7 @@ impl Film {
                 })
                 .collect(),
             splat_sums: pick(&self.splat_sum, inside),
+            splat_left: pick(&self.splat_left, inside),
             splat_paths: self.splat_paths,
             camera_discarded: self.discarded - self.splat_discarded,
             splat_discarded: self.splat_discarded,
@@ -658,11 +742,13 @@ impl Film {
         width: u32,
         height: u32,
         spp: u32,
-        mirror: Option<Mirror>,
+        (mirror, halves): (Option<Mirror>, Option<HalfMirror>),
         splats: bool,
         parts: &[PartData],
     ) -> Result<Self, std::collections::TryReserveError> {
-        let mut film = Self::try_new(width, height)?.with_mirror(mirror);
+        let mut film = Self::try_new(width, height)?
+            .with_mirror(mirror)
+            .try_with_halves(halves)?;
         if splats {
             film = film.try_with_splats()?;
         }
@@ -678,11 +764,24 @@ impl Film {
                 }
                 if !draft_only {
                     film.xyz_sum.add(i, part.sums[i]);
+                    if let (Some(_), Some(&left), Some(&weight)) =
+                        (halves, part.left_sums.get(i), part.left_weights.get(i))
+                    {
+                        film.left_sum.add(i, left);
+                        film.left_weight[i] += weight.to_f64();
+                    }
                     *weight += part.weights[i];
                 }
                 if splats {
                     for c in 0..3 {
                         film.splat_sum[i][c] += part.splat_sums[i][c];
+                    }
+                    if let (false, Some(left)) =
+                        (film.splat_left.is_empty(), part.splat_left.get(i))
+                    {
+                        for (s, l) in film.splat_left[i].iter_mut().zip(left) {
+                            *s += l;
+                        }
                     }
                 }
             }
@@ -714,6 +813,7 @@ mod tests {
         film.add_splats(
             &[super::super::film_spectral::Splat {
                 pixel: 0,
+                column_offset: 0.5,
                 xyz: [4.0; 3],
                 lanes: super::super::film_spectral::SplatLanes::default(),
             }],

@@ -168,6 +168,9 @@ impl SpectralFilm {
 pub struct Splat {
     /// Row-major pixel index.
     pub pixel: u32,
+    /// Where it lands across the pixel's columns, 0–1 from its left edge
+    /// (which part a [`super::HalfMirror`] reads it in).
+    pub column_offset: f32,
     /// XYZ (Y in cd m⁻²) times the number of paths it is averaged over.
     pub xyz: [f64; 3],
     /// The same light by wavelength lane, for a spectral film: the lanes'

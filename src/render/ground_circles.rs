@@ -96,6 +96,7 @@ const SHORT_OF_GROUND: f64 = 1e-6;
 /// density).
 struct Landing {
     pixel: u32,
+    column_offset: f32,
     dir: DVec3,
     t_m: f64,
     weight: f64,
@@ -335,6 +336,7 @@ impl GroundSplatter {
             per_sr * cos_x * ground_m * ground_m * arc.theta.sin() / (t_m * t_m * arc.density(psi));
         Some(Landing {
             pixel: (py as u32) * width as u32 + px as u32,
+            column_offset: px.fract() as f32,
             dir,
             t_m,
             weight,
@@ -440,6 +442,7 @@ impl GroundSplatter {
             if xyz.iter().all(|v| v.is_finite()) {
                 out.push(Splat {
                     pixel: landing.pixel,
+                    column_offset: landing.column_offset,
                     xyz,
                     lanes: spectral,
                 });

@@ -31,7 +31,9 @@ impl Renderer {
     pub fn try_new_film(&self) -> Result<Film, OutOfMemory> {
         let film = Film::try_new(self.scene.render.width, self.scene.render.height)
             .map_err(|_| self.out_of_memory())?
-            .with_mirror(self.mirror);
+            .with_mirror(self.mirror)
+            .try_with_halves(self.halves)
+            .map_err(|_| self.out_of_memory())?;
         let film = if self.plan.circle_splatting {
             film.try_with_splats().map_err(|_| self.out_of_memory())?
         } else {
@@ -57,8 +59,10 @@ impl Renderer {
     }
 
     /// About the most memory a render of this scene holds at once, bytes:
-    /// the film (exact XYZ sums, 24 bytes a pixel, [`super::exact`]; the
-    /// splat layer's f32 sums, 12, where the renderer splats; the adaptive
+    /// the film (exact XYZ sums, 24 bytes a pixel, [`super::exact`], and
+    /// with a [`super::HalfMirror`] its left parts' sums and weight, 32; the
+    /// splat layer's f32 sums, 12, where the renderer splats (24 with a
+    /// half mirror); the adaptive
     /// plan's byte) and, on top, the
     /// larger of the adaptive plan's working arrays (a pixel index, the
     /// luminance, its spread, a bin and the plan: 19 bytes) and the output
@@ -69,8 +73,14 @@ impl Renderer {
     /// integrator reads do not grow with the image and are left out.
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
-        let film = ExactPlane::BYTES_PER_PIXEL as u64
-            + if self.plan.circle_splatting { 12 } else { 0 }
+        let exact = ExactPlane::BYTES_PER_PIXEL as u64;
+        let film = exact
+            + if self.halves.is_some() { exact + 8 } else { 0 }
+            + match (self.plan.circle_splatting, self.halves.is_some()) {
+                (true, true) => 24,
+                (true, false) => 12,
+                (false, _) => 0,
+            }
             + 1;
         let planning = 8 + 4 + 4 + 2 + 1;
         let output = 12 + 3;

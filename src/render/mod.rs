@@ -20,6 +20,7 @@ pub mod directions;
 pub mod exact;
 pub mod fast;
 pub mod film;
+mod film_halves;
 pub mod film_layers;
 pub mod film_spectral;
 pub mod ground_circles;
@@ -45,11 +46,13 @@ pub mod transmittance;
 pub mod trig;
 
 pub use crate::plan::{IntegratorOptions, Sampler, TechniquePlan};
-pub use camera::{direction_from_az_el, Camera, Mirror, MirrorAxis};
+pub use camera::{direction_from_az_el, Camera, HalfMirror, Mirror, MirrorAxis};
 pub use film::Film;
 pub use integrator::Integrator;
 pub use lanes::{LaneTable, SolarSource};
 pub use medium::{Lanes, Medium, SpectralLanes, TransmittanceEstimator, LANES};
 pub use memory::OutOfMemory;
 pub use probe::SpectralEstimate;
-pub use renderer::{mirror_pairs, solar_source, PassStats, Renderer, ADAPTIVE_FROM_PASS};
+pub use renderer::{
+    mirror_halves, mirror_pairs, solar_source, PassStats, Renderer, ADAPTIVE_FROM_PASS,
+};

@@ -191,8 +191,17 @@ pub struct PartData {
     pub sums: Vec<[ExactSum; 3]>,
     /// Total weight of each pixel's camera samples, exact.
     pub weights: Vec<ExactSum>,
+    /// The part of `sums` and `weights` from the samples drawn in the
+    /// pixels' left parts under a [`super::HalfMirror`] (empty where the
+    /// render has none).
+    pub left_sums: Vec<[ExactSum; 3]>,
+    /// See `left_sums`.
+    pub left_weights: Vec<ExactSum>,
     /// Sums of the splats (empty where the render does not splat).
     pub splat_sums: Vec<[f32; 3]>,
+    /// The part of `splat_sums` that landed in the pixels' left parts under
+    /// a [`super::HalfMirror`] (empty without one or without splats).
+    pub splat_left: Vec<[f32; 3]>,
     /// Paths splatted (over the whole image).
     pub splat_paths: u64,
     /// Camera samples discarded (in the tile).

@@ -19,7 +19,7 @@ pub fn solar_source(scene: &Scene) -> SolarSource {
         .with_limb_darkening(scene.sun.limb_darkening)
 }
 
-use super::camera::{direction_from_az_el, Camera, Mirror, MirrorAxis};
+use super::camera::{direction_from_az_el, Camera, HalfMirror, Mirror, MirrorAxis};
 use super::film::Film;
 use super::integrator::Integrator;
 use super::lanes::{LaneTable, SolarSource};
@@ -58,6 +58,33 @@ pub fn mirror_pairs(scene: &Scene) -> Option<Mirror> {
         .flatten()
 }
 
+/// The pixel parts a film of `scene` reads together ([`film`]) where the
+/// sun's vertical plane is off the pixel grid of an equirect image (a real
+/// date's sun, most often): [`Camera::half_mirror`], where `[render]
+/// mirror_symmetry` is on and no output reads the film's sums otherwise
+/// than the image does (the `sky`, `sun`, `ground` and `variance` layers,
+/// a spectral image: those read each pixel alone there) and the render
+/// has three passes or more (the draft and the first full pass draw in
+/// the wider part only, [`HalfMirror::in_left`]); `None` otherwise, and
+/// where [`mirror_pairs`] has pairs.
+pub fn mirror_halves(scene: &Scene) -> Option<HalfMirror> {
+    let own_sums = scene.output.spectral_bands.is_some()
+        || scene
+            .output
+            .layers
+            .iter()
+            .any(|l| l == "variance" || super::film_layers::PATH_LAYERS.contains(&l.as_str()));
+    if !scene.render.mirror_symmetry
+        || own_sums
+        || scene.render.spp < 3
+        || mirror_pairs(scene).is_some()
+    {
+        return None;
+    }
+    Camera::new(&scene.camera, scene.render.width, scene.render.height)
+        .half_mirror(scene.sun.azimuth_deg)
+}
+
 /// A scene made ready to render.
 pub struct Renderer {
     /// The scene as validated.
@@ -79,7 +106,13 @@ pub struct Renderer {
     pub(super) draft_plan: TechniquePlan,
     /// The pixel pairs the film reads together (`mirror_symmetry`).
     pub(super) mirror: Option<Mirror>,
+    /// The pixel parts the film reads together where there are no pairs.
+    pub(super) halves: Option<HalfMirror>,
 }
+
+/// A row's sums and weights of the samples in its pixels' left parts
+/// under a [`HalfMirror`].
+type LeftRow<'a> = (exact::ExactRow<'a>, &'a mut [f64]);
 
 /// Where a pixel takes its low-discrepancy numbers
 /// ([`Renderer::sequence_slot`]): sample k uses point k × `stride` +
@@ -136,6 +169,7 @@ impl Renderer {
         Ok(Self {
             tables: Tables::new(&medium, &plan, &lane_table, observer_m, sun_direction),
             mirror: mirror_pairs(scene),
+            halves: mirror_halves(scene),
             draft_plan: plan.first_pass(),
             plan,
             observer_m,
@@ -322,11 +356,27 @@ impl Renderer {
             _ => rng,
         };
         let (u, v) = (rng.uniform(), rng.uniform());
+        // Under a half mirror each part's samples take the pixel position
+        // from a sequence of their own (numbered within the part), so that
+        // they are stratified over the part as a pixel's are over it.
+        let (u, v) = match (self.halves, point, integrator.plan.sampler) {
+            (Some(h), Some(_), Sampler::Sobol) => {
+                let index = h.part_index(sample);
+                let part_pixel = (pixel << 1 | u64::from(h.in_left(sample))) | 1 << 63;
+                if index < SOBOL_POINTS {
+                    let [u, v] = rng.sobol_2d(seed, part_pixel, index as u32);
+                    (u, v)
+                } else {
+                    (u, v)
+                }
+            }
+            _ => (u, v),
+        };
         let px = f64::from(x)
-            + if slot.reflect == Some(MirrorAxis::Columns) {
-                1.0 - u
-            } else {
-                u
+            + match (self.halves, slot.reflect) {
+                (Some(h), _) => h.position(h.in_left(sample), u),
+                (None, Some(MirrorAxis::Columns)) => 1.0 - u,
+                (None, _) => u,
             };
         let py = f64::from(y)
             + if slot.reflect == Some(MirrorAxis::Rows) {
@@ -394,7 +444,9 @@ impl Renderer {
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> PassStats {
         assert!(
-            film.mirror == self.mirror && film.splats() == self.plan.circle_splatting,
+            film.mirror == self.mirror
+                && film.halves == self.halves
+                && film.splats() == self.plan.circle_splatting,
             "render_pass: a film from Renderer::new_film (its mirror pairs, its splat layer) is needed"
         );
         // A part that starts later plans after its own first pass.
@@ -467,6 +519,19 @@ impl Renderer {
                 Some(v) => v.rows(width).into_iter().map(|r| Some(r).into()).collect(),
                 None => film.row_passes.iter().map(|_| None.into()).collect(),
             };
+        // The sums and weights of the samples in the pixels' left parts
+        // under a half mirror, likewise.
+        let halves = film.halves;
+        let left_rows: Vec<std::sync::Mutex<Option<LeftRow<'_>>>> = if halves.is_some() {
+            film.left_sum
+                .rows_mut()
+                .into_iter()
+                .zip(film.left_weight.chunks_mut(width))
+                .map(|r| Some(r).into())
+                .collect()
+        } else {
+            film.row_passes.iter().map(|_| None.into()).collect()
+        };
         film.xyz_sum
             .rows_mut()
             .into_par_iter()
@@ -487,10 +552,17 @@ impl Renderer {
                 let mut spectral = spectral_rows[y]
                     .lock()
                     .unwrap_or_else(std::sync::PoisonError::into_inner);
+                let mut left_row = left_rows[y]
+                    .lock()
+                    .unwrap_or_else(std::sync::PoisonError::into_inner);
                 if splats {
                     // As `Film::drop_draft` drops the row's XYZ.
                     if *passes == 1 {
                         spectral.fill(0.0);
+                    }
+                    if let Some((sums, weights)) = left_row.as_mut().filter(|_| *passes == 1) {
+                        sums.clear();
+                        weights.fill(0.0);
                     }
                     Film::drop_draft(&mut row, *passes, row_weight);
                 }
@@ -531,7 +603,14 @@ impl Renderer {
                         _ => &integrator,
                     };
                     let mut sum = [ExactSum::ZERO; 3];
+                    let (mut left, mut left_weight) = ([ExactSum::ZERO; 3], 0.0);
                     for sample in first..first + count {
+                        // A discarded sample keeps its weight (as a row's
+                        // passes do): its part's too.
+                        let in_left = halves.is_some_and(|h| h.in_left(sample));
+                        if in_left {
+                            left_weight += weight;
+                        }
                         let sampled = self.sample_pixel_lanes(
                             integrator,
                             x as u32,
@@ -541,8 +620,14 @@ impl Renderer {
                         );
                         match sampled {
                             Some((xyz, lanes, split)) => {
+                                let value = xyz.map(|v| ExactSum::from_f64(weight * v));
                                 for c in 0..3 {
-                                    sum[c] += ExactSum::from_f64(weight * xyz[c]);
+                                    sum[c] += value[c];
+                                }
+                                if in_left {
+                                    for c in 0..3 {
+                                        left[c] += value[c];
+                                    }
                                 }
                                 if let Some(layer_row) = layer_row.as_mut() {
                                     layer_row.add(x, weight, xyz, &split);
@@ -560,6 +645,10 @@ impl Renderer {
                         }
                     }
                     row.add(x, sum);
+                    if let Some((sums, weights)) = left_row.as_mut() {
+                        sums.add(x, left);
+                        weights[x] += left_weight;
+                    }
                     row_paths += count;
                 }
                 *passes += 1;

@@ -217,9 +217,11 @@ pub struct RenderParams {
     /// a pixel gets.
     pub adaptive_sampling: bool,
     /// Read each pixel together with its mirror image in the sun's vertical
-    /// plane where the camera maps that reflection onto the pixel grid
-    /// (unbiased: the sky is symmetric about that plane; see
-    /// [`crate::render::film`]): about half the variance at no cost.
+    /// plane where the camera maps that reflection onto the pixel grid, and
+    /// each half of a pixel with its mirror image's where an equirect
+    /// image's columns split it (unbiased: the sky is symmetric about that
+    /// plane; see [`crate::render::film`]): about half the variance at no
+    /// cost.
     pub mirror_symmetry: bool,
     /// The technique switches (`[render.integrator]`).
     pub integrator: IntegratorOptions,
