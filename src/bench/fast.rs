@@ -73,10 +73,7 @@ pub(super) fn measure_fast(
     let mut images = Vec::new();
     let (mut seconds, mut passes, mut compose_s) = (0.0, [0; 2], 0.0);
     for (k, offset) in [3, 4].into_iter().enumerate() {
-        let mut s = fast_scene.clone();
-        s.render.seed = seed
-            .checked_add(offset)
-            .ok_or_else(|| format!("seed {seed}: the fast mode's seed overflows"))?;
+        let s = super::noise::with_seed(&fast_scene, seed, offset, "the fast mode")?;
         let coarse = Renderer::new(&fast::coarse_scene(&s)).map_err(|e| e.to_string())?;
         let r = render_for(&coarse, budget_s / 2.0);
         seconds += r.seconds;

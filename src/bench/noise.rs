@@ -211,6 +211,21 @@ pub fn process_cpu_seconds() -> Option<f64> {
     Some((utime + stime) / 100.0)
 }
 
+/// `scene` with seed `seed + offset`, or an error naming `what` render's
+/// seed where that overflows.
+pub(super) fn with_seed(
+    scene: &Scene,
+    seed: u64,
+    offset: u64,
+    what: &str,
+) -> Result<Scene, String> {
+    let mut s = scene.clone();
+    s.render.seed = seed
+        .checked_add(offset)
+        .ok_or_else(|| format!("seed {seed}: {what}'s seed (seed + {offset}) overflows"))?;
+    Ok(s)
+}
+
 /// What [`render_for`] did.
 pub(super) struct Rendered {
     pub(super) film: Film,
@@ -289,12 +304,8 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
-    let second = seed
-        .checked_add(1)
-        .ok_or_else(|| format!("seed {seed}: B's seed (seed + 1) overflows"))?;
-    for (k, seed) in [seed, second].into_iter().enumerate() {
-        let mut s = scene.clone();
-        s.render.seed = seed;
+    for (k, what) in ["A", "B"].into_iter().enumerate() {
+        let s = with_seed(scene, seed, k as u64, what)?;
         let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
         let r = render_for(&renderer, budget_s / 2.0);
         run.seconds += r.seconds;
@@ -379,10 +390,7 @@ pub fn measure_preview(
     if let Some(seconds) = reference_s {
         let mut long = Vec::with_capacity(2);
         for offset in [3, 4] {
-            let mut s = scene.clone();
-            s.render.seed = seed.checked_add(offset).ok_or_else(|| {
-                format!("seed {seed}: the reference's seed (seed + {offset}) overflows")
-            })?;
+            let s = with_seed(scene, seed, offset, "the reference")?;
             let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
             long.push(luminance(&render_for(&renderer, seconds).film));
         }
@@ -395,11 +403,7 @@ pub fn measure_preview(
     }
     let mean = &run.reference;
     // The first pass of a third, independent render against the reference.
-    let third = seed
-        .checked_add(2)
-        .ok_or_else(|| format!("seed {seed}: the first pass's seed (seed + 2) overflows"))?;
-    let mut s = scene.clone();
-    s.render.seed = third;
+    let s = with_seed(scene, seed, 2, "the first pass")?;
     let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
     let mut film = renderer.new_film();
     renderer.render_pass(&mut film, 0, &|| false);
