@@ -375,14 +375,28 @@ impl HalfMirror {
         }
     }
 
-    /// The index of full sample `sample` ≥ 1 among its part's full
-    /// samples (0 for the first).
-    pub fn part_index(self, sample: u64) -> u64 {
-        if self.in_left(sample) {
-            self.left_count(sample) - 1
-        } else {
-            sample - self.left_count(sample) - 1
-        }
+    /// Sample `sample`'s part (whether the left one) and its number among
+    /// its part's full samples (0 for the first; the draft's 0).
+    pub fn part(self, sample: u64) -> (bool, u64) {
+        let left = self.in_left(sample);
+        let index = match (sample, left) {
+            (0, _) => 0,
+            (_, true) => self.left_count(sample) - 1,
+            (_, false) => sample - self.left_count(sample) - 1,
+        };
+        (left, index)
+    }
+
+    /// [`Self::part`] for samples numbered apart (a later part of a split
+    /// render numbers a pixel's samples pass × 16 + k): the left part where
+    /// frac(n φ + ½) < g, φ the golden ratio's conjugate — in proportion
+    /// on any arithmetic run of numbers, where [`Self::in_left`]'s rounded
+    /// line can fall on one part only (g = ½ and every 16th number); the
+    /// number itself as the index.
+    pub fn part_apart(self, sample: u64) -> (bool, u64) {
+        const PHI: f64 = 0.618_033_988_749_894_8;
+        let left = (sample as f64 * PHI + 0.5).fract() < self.split;
+        (left, sample)
     }
 
     /// Where across its pixel (0–1 from the left edge) a sample drawn in
@@ -692,6 +706,21 @@ mod tests {
             }
             assert_eq!(m.in_left(0), split >= 0.5);
             assert!(m.position(true, 0.999) < split && m.position(false, 0.0) >= split);
+            // Each part's samples numbered 0, 1, … in order.
+            let (mut l, mut r) = (0, 0);
+            for n in 1..500u64 {
+                let (left, index) = m.part(n);
+                let next = if left { &mut l } else { &mut r };
+                assert_eq!(index, *next, "g {split}, n {n}");
+                *next += 1;
+            }
+            // Numbered apart (every 16th number, as a later part of a split
+            // render numbers its one sample a pass): still in proportion.
+            let apart = (1..=2000u64).filter(|p| m.part_apart(16 * p).0).count();
+            assert!(
+                (apart as f64 - 2000.0 * split).abs() < 20.0,
+                "g {split}: {apart} of 2000"
+            );
         }
     }
 

@@ -322,7 +322,8 @@ impl Renderer {
         y: u32,
         sample: u64,
     ) -> Option<[f64; 3]> {
-        self.sample_pixel_lanes(integrator, x, y, sample, false)
+        let part = self.halves.map(|h| h.part(sample));
+        self.sample_pixel_lanes(integrator, x, y, sample, false, part)
             .map(|(xyz, ..)| xyz)
     }
 
@@ -337,6 +338,7 @@ impl Renderer {
         y: u32,
         sample: u64,
         layers: bool,
+        part: Option<(bool, u64)>,
     ) -> Option<([f64; 3], SampleLanes, SampleSplit)> {
         let width = self.scene.render.width;
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);
@@ -359,10 +361,9 @@ impl Renderer {
         // Under a half mirror each part's samples take the pixel position
         // from a sequence of their own (numbered within the part), so that
         // they are stratified over the part as a pixel's are over it.
-        let (u, v) = match (self.halves, point, integrator.plan.sampler) {
-            (Some(h), Some(_), Sampler::Sobol) => {
-                let index = h.part_index(sample);
-                let part_pixel = (pixel << 1 | u64::from(h.in_left(sample))) | 1 << 63;
+        let (u, v) = match (part, point, integrator.plan.sampler) {
+            (Some((left, index)), Some(_), Sampler::Sobol) => {
+                let part_pixel = (pixel << 1 | u64::from(left)) | 1 << 63;
                 if index < SOBOL_POINTS {
                     let [u, v] = rng.sobol_2d(seed, part_pixel, index as u32);
                     (u, v)
@@ -373,8 +374,8 @@ impl Renderer {
             _ => (u, v),
         };
         let px = f64::from(x)
-            + match (self.halves, slot.reflect) {
-                (Some(h), _) => h.position(h.in_left(sample), u),
+            + match (self.halves.zip(part), slot.reflect) {
+                (Some((h, (left, _))), _) => h.position(left, u),
                 (None, Some(MirrorAxis::Columns)) => 1.0 - u,
                 (None, _) => u,
             };
@@ -607,7 +608,17 @@ impl Renderer {
                     for sample in first..first + count {
                         // A discarded sample keeps its weight (as a row's
                         // passes do): its part's too.
-                        let in_left = halves.is_some_and(|h| h.in_left(sample));
+                        // A part's samples numbered apart (pass × 16 + k)
+                        // take their part by a rotation of their number,
+                        // which stays in proportion on any such subset.
+                        let part = halves.map(|h| {
+                            if apart {
+                                h.part_apart(sample)
+                            } else {
+                                h.part(sample)
+                            }
+                        });
+                        let in_left = part.is_some_and(|p| p.0);
                         if in_left {
                             left_weight += weight;
                         }
@@ -617,6 +628,7 @@ impl Renderer {
                             y as u32,
                             sample,
                             with_layers,
+                            part,
                         );
                         match sampled {
                             Some((xyz, lanes, split)) => {
