@@ -31,6 +31,14 @@ fn merge(dir: &Path, parts: &[PathBuf], name: &str) -> PathBuf {
 /// The arguments of a 64×32 render of `preset` with the sun at `azimuth`
 /// degrees, `spp` passes, adaptive sampling off.
 fn small_scene<'a>(preset: &'a str, azimuth: &'a str, spp: &'a str) -> [&'a str; 11] {
+    let mut args = [""; 11];
+    args[..10].copy_from_slice(&adaptive_scene(preset, azimuth, spp));
+    args[10] = "--no-adaptive";
+    args
+}
+
+/// [`small_scene`] with adaptive sampling on.
+fn adaptive_scene<'a>(preset: &'a str, azimuth: &'a str, spp: &'a str) -> [&'a str; 10] {
     [
         "--preset",
         preset,
@@ -42,7 +50,6 @@ fn small_scene<'a>(preset: &'a str, azimuth: &'a str, spp: &'a str) -> [&'a str;
         "32",
         "--spp",
         spp,
-        "--no-adaptive",
     ]
 }
 
@@ -152,18 +159,7 @@ fn adaptive_parts_merge_to_a_statistically_equal_image() {
 
 fn adaptive_parts_at(azimuth: &str, sun_x: f64) {
     let dir = tempfile::tempdir().unwrap();
-    let scene = [
-        "--preset",
-        "sunset",
-        "--sun-azimuth",
-        azimuth,
-        "--width",
-        "64",
-        "--height",
-        "32",
-        "--spp",
-        "6",
-    ];
+    let scene = adaptive_scene("sunset", azimuth, "6");
     let a = luminance(&render(dir.path(), "a.exr", &scene, &["--seed", "1"]));
     let b = luminance(&render(dir.path(), "b.exr", &scene, &["--seed", "2"]));
     let parts = vec![

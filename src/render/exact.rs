@@ -208,16 +208,7 @@ impl ExactRow<'_> {
             }
         }
         if spill != [ExactSum::ZERO; 3] {
-            let column = x as u32;
-            let at = self
-                .excess
-                .iter()
-                .position(|e| e.0 == column)
-                .unwrap_or_else(|| {
-                    self.excess.push((column, [ExactSum::ZERO; 3]));
-                    self.excess.len() - 1
-                });
-            for (e, s) in self.excess[at].1.iter_mut().zip(spill) {
+            for (e, s) in column_entry(self.excess, x).iter_mut().zip(spill) {
                 *e += s;
             }
         }
@@ -233,6 +224,17 @@ impl ExactRow<'_> {
         self.compact.fill([0; 3]);
         self.excess.clear();
     }
+}
+
+/// The sums of column `x` in a row's short list of columns, added (as
+/// zeros) where it is not listed yet.
+pub(crate) fn column_entry(list: &mut Vec<(u32, [ExactSum; 3])>, x: usize) -> &mut [ExactSum; 3] {
+    let column = x as u32;
+    let at = list.iter().position(|e| e.0 == column).unwrap_or_else(|| {
+        list.push((column, [ExactSum::ZERO; 3]));
+        list.len() - 1
+    });
+    &mut list[at].1
 }
 
 /// A pixel's compact sums plus its excess in `excess`, if listed.

@@ -25,7 +25,7 @@
 //! minus the other two, exactly, so it needs no memory of its own. The
 //! sun's, non-zero on a few pixels only, are kept per row as a short list.
 
-use super::exact::{ExactPlane, ExactRow, ExactSum};
+use super::exact::{column_entry, ExactPlane, ExactRow, ExactSum};
 
 /// The layers the film estimates from its paths, as named in
 /// [`crate::scene::OUTPUT_LAYERS`].
@@ -68,16 +68,7 @@ impl LayerRow<'_> {
             self.ground
                 .add(x, xyz.map(|v| ExactSum::from_f64(weight * v)));
         } else if split.sun_xyz.iter().any(|&v| v != 0.0) {
-            let column = x as u32;
-            let at = self
-                .sun
-                .iter()
-                .position(|e| e.0 == column)
-                .unwrap_or_else(|| {
-                    self.sun.push((column, [ExactSum::ZERO; 3]));
-                    self.sun.len() - 1
-                });
-            for (s, v) in self.sun[at].1.iter_mut().zip(split.sun_xyz) {
+            for (s, v) in column_entry(self.sun, x).iter_mut().zip(split.sun_xyz) {
                 *s += ExactSum::from_f64(weight * v);
             }
         }
