@@ -56,6 +56,12 @@ pub fn mix64(mut z: u64) -> u64 {
     z ^ (z >> 31)
 }
 
+/// The Owen scramble of `pixel`'s Sobol sequences under `seed`: one per
+/// pixel, so the pixels' sequences are independent.
+fn sobol_scramble(seed: u64, pixel: u64) -> u32 {
+    mix64(seed ^ mix64(pixel ^ 0x50b0_1000)) as u32
+}
+
 impl Rng {
     /// A generator for one stream, identified by any number of keys.
     pub fn new(seed: u64, stream: u64) -> Self {
@@ -87,8 +93,7 @@ impl Rng {
     #[must_use]
     pub fn with_sobol_prefix(mut self, seed: u64, pixel: u64, index: u32) -> Self {
         debug_assert!(u64::from(index) < SOBOL_POINTS);
-        // A scramble per pixel: the pixels' sequences are independent.
-        let scramble = mix64(seed ^ mix64(pixel ^ 0x50b0_1000)) as u32;
+        let scramble = sobol_scramble(seed, pixel);
         for (set, chunk) in self.prefix.chunks_exact_mut(4).enumerate() {
             chunk.copy_from_slice(&sobol_burley::sample_4d(index, set as u32, scramble));
         }
@@ -102,11 +107,15 @@ impl Rng {
     /// gives them (low bits from this generator), without the rest.
     pub fn sobol_2d(&mut self, seed: u64, pixel: u64, index: u32) -> [f64; 2] {
         debug_assert!(u64::from(index) < SOBOL_POINTS);
-        let scramble = mix64(seed ^ mix64(pixel ^ 0x50b0_1000)) as u32;
-        let point = sobol_burley::sample_4d(index, 0, scramble);
-        [0, 1].map(|k| {
-            f64::from(point[k]) + f64::from(self.next_u32() >> 2) * (1.0 / (1u64 << 53) as f64)
-        })
+        let point = sobol_burley::sample_4d(index, 0, sobol_scramble(seed, pixel));
+        [0, 1].map(|k| self.sobol_uniform(point[k]))
+    }
+
+    /// Sobol coordinate `v` made uniform on [0, 1) at full precision: the
+    /// Sobol values are multiples of 2⁻²³, and 30 random bits below that
+    /// fill the rest (the sum is exact and at most 1 − 2⁻⁵³).
+    fn sobol_uniform(&mut self, v: f32) -> f64 {
+        f64::from(v) + f64::from(self.next_u32() >> 2) * (1.0 / (1u64 << 53) as f64)
     }
 
     /// Runs `f` with `values` (each in [0, 1)) served as its first uniforms,
@@ -148,13 +157,9 @@ impl Rng {
             return self.replay[usize::from(self.replay_next - 1)];
         }
         if self.prefix_next < self.prefix_len {
-            let v = f64::from(self.prefix[usize::from(self.prefix_next)]);
+            let v = self.prefix[usize::from(self.prefix_next)];
             self.prefix_next += 1;
-            // The Sobol values are multiples of 2⁻²³; 30 random bits below
-            // that make the value uniform on [0, 1) at full precision (the
-            // sum is exact and at most 1 − 2⁻⁵³).
-            let low = f64::from(self.next_u32() >> 2) * (1.0 / (1u64 << 53) as f64);
-            return v + low;
+            return self.sobol_uniform(v);
         }
         ((self.next_u64() >> 11) as f64) * (1.0 / (1u64 << 53) as f64)
     }

@@ -75,16 +75,19 @@ pub(super) fn plan_linked(
             let mut spans = [x, linked(x)[0], linked(x)[1]]
                 .map(|c| c.saturating_sub(r)..(c + r + 1).min(width));
             spans.sort_by_key(|s| s.start);
-            let mut columns: Vec<std::ops::Range<usize>> = Vec::with_capacity(3);
+            let (mut columns, mut count) = ([0..0, 0..0, 0..0], 0);
             for span in spans {
-                match columns.last_mut() {
+                match columns[..count].last_mut() {
                     Some(last) if span.start <= last.end => last.end = last.end.max(span.end),
-                    _ => columns.push(span),
+                    _ => {
+                        columns[count] = span;
+                        count += 1;
+                    }
                 }
             }
             let mut n = 0;
             for yy in rows.clone() {
-                for span in &columns {
+                for span in &columns[..count] {
                     for &b in &bins[yy * width + span.start..yy * width + span.end] {
                         if b > 0 {
                             window[n] = b;

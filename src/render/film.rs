@@ -319,9 +319,6 @@ impl Film {
     /// Mean XYZ of pixel `index`'s camera samples (row-major), with its
     /// mirror image's where the film has a mirror; 0 before the first pass.
     fn camera_mean(&self, index: usize) -> [f64; 3] {
-        if self.halves.is_some() {
-            return self.halves_camera_mean(index, &|_| true);
-        }
         let (w, h) = (self.width as usize, self.height as usize);
         let partner = self
             .mirror

@@ -91,20 +91,19 @@ impl Film {
         };
         let w = self.width as usize;
         let (x, row) = (index % w, index - index % w);
-        // (sums, weight) of a pixel's left or right part.
-        let part = |i: usize, left: bool| {
+        // (sums, weight) of a pixel's left and right parts.
+        let parts = |i: usize| {
             let (all, l) = (self.xyz_sum.get(i), self.left_sum.get(i));
             let lw = self.left_weight[i];
-            if left {
-                (l, lw)
-            } else {
-                ([0, 1, 2].map(|c| all[c] - l[c]), self.pixel_weight(i) - lw)
-            }
+            let r = [0, 1, 2].map(|c| all[c] - l[c]);
+            [(l, lw), (r, self.pixel_weight(i) - lw)]
         };
+        let mine = parts(index);
         let mean = |left: bool, partner: usize| {
-            let (mut sum, mut weight) = part(index, left);
+            let side = usize::from(!left);
+            let (mut sum, mut weight) = mine[side];
             if partner != index && usable(partner) {
-                let (s, pw) = part(partner, left);
+                let (s, pw) = parts(partner)[side];
                 for (a, b) in sum.iter_mut().zip(s) {
                     *a += b;
                 }
