@@ -19,8 +19,10 @@ pub(super) const RANGE_NM: (f64, f64) = (360.0, 830.0);
 /// A quantity at the model's wavelengths.
 pub(super) type Spectrum = [f64; NODES];
 
-/// Steps of a march inside the multiple-scattering and irradiance tables.
-pub(super) const TABLE_STEPS: usize = 12;
+/// Steps of a march inside the multiple-scattering and irradiance tables
+/// (at 12, the second order's light just above the horizon at sunset read
+/// 9–20 % over the path tracer's; 24 halves that).
+pub(super) const TABLE_STEPS: usize = 24;
 /// Steps of a march through the table of an order past the first.
 pub(super) const TABLE_STEPS_HIGHER: usize = 8;
 /// Directions over which Ψ's integrals are summed: outside the cap about
@@ -32,10 +34,21 @@ pub(super) const MS_DIRECTIONS_NEAR_SUN: usize = 768;
 /// The cosine of the cap's half-angle about the sun (40°: wide enough for
 /// the Martian dust's aureole and twilight's arch about the set sun).
 pub(super) const SUN_CAP_COSINE: f64 = 0.766;
-/// Directions over which the orders past the second are summed (their
-/// light is smoother than the once-scattered light, whose twilight arch
-/// and horizon band fewer directions alias).
-pub(super) const MS_DIRECTIONS_HIGHER: usize = 32;
+/// ... and within the inner cap about the sun, of cosine
+/// [`SUN_INNER_CAP_COSINE`], as dense as an even set of this many, for
+/// the once-scattered light ([`Quadrature::rings`]): cells of about 2°,
+/// as narrow as the Martian dust's forward peak (half its height 3° from
+/// the sun at 500 nm). The light scattered twice toward a view near the
+/// sun is the product of two such peaks, the once-scattered light's
+/// about the sun and the phase function's about the view; averaged over
+/// cells of 4° (768's) the product read a fifth too faint 2–8° from the
+/// sun at Mars sunset.
+pub(super) const MS_DIRECTIONS_AT_SUN: usize = 3072;
+/// The cosine of the inner cap's half-angle (20°).
+pub(super) const SUN_INNER_CAP_COSINE: f64 = 0.94;
+/// Directions over which the ground's irradiance from the orders past the
+/// first is summed (their light is smooth, and no phase function is read).
+pub(super) const GROUND_DIRECTIONS_HIGHER: usize = 64;
 /// Altitudes and solar-zenith cosines of the multiple-scattering table.
 pub(super) const MS_ALTITUDES: usize = 9;
 /// See [`MS_ALTITUDES`].
@@ -575,18 +588,26 @@ impl<'a> Quadrature<'a> {
         cap_cosine: f64,
         cells: [&'a Phases; 2],
     ) -> Self {
+        Self::rings(&[(near, cap_cosine), (far, -1.0)], &cells)
+    }
+
+    /// Rings about the sun, from it outward: ring k holds the directions
+    /// of an even set of `rings[k].0` whose cosine to the sun lies between
+    /// `rings[k].1` and the ring before's (1 for the first), with
+    /// `cells[k]` (the phase functions averaged over cells of
+    /// 4π/`rings[k].0`); each ring's solid angles sum to its area.
+    pub(super) fn rings(rings: &[(usize, f64)], cells: &[&'a Phases]) -> Self {
         let mut points = Vec::new();
-        let caps = [
-            (near, 2.0 * PI * (1.0 - cap_cosine), true),
-            (far, 2.0 * PI * (1.0 + cap_cosine), false),
-        ];
-        for (index, (count, area, inside)) in caps.into_iter().enumerate() {
+        let mut inner_cosine = 1.0;
+        for (index, &(count, outer_cosine)) in rings.iter().enumerate() {
+            let area = 2.0 * PI * (inner_cosine - outer_cosine);
             let part: Vec<DVec3> = fibonacci_sphere(count)
                 .into_iter()
-                .filter(|d| (d.z > cap_cosine) == inside)
+                .filter(|d| d.z > outer_cosine && (d.z <= inner_cosine || index == 0))
                 .collect();
             let weight = area / part.len().max(1) as f64;
             points.extend(part.into_iter().map(|d| (d, weight, index)));
+            inner_cosine = outer_cosine;
         }
         Self {
             points,
@@ -717,9 +738,25 @@ mod tests {
             SUN_CAP_COSINE,
             [&near_cells, &far_cells],
         );
+        let at_sun_cells = phases.averaged_over_cells(MS_DIRECTIONS_AT_SUN);
+        let rings = Quadrature::rings(
+            &[
+                (MS_DIRECTIONS_AT_SUN, SUN_INNER_CAP_COSINE),
+                (MS_DIRECTIONS_NEAR_SUN, SUN_CAP_COSINE),
+                (MS_DIRECTIONS, -1.0),
+            ],
+            &[&at_sun_cells, &near_cells, &far_cells],
+        );
         for mu_s in [1.0_f64, 0.5, 0.0, -0.3] {
             let sun = DVec3::new((1.0 - mu_s * mu_s).sqrt(), 0.0, mu_s);
-            for (name, q) in [("even", &even), ("about the sun", &near)] {
+            // The inner cap holds its share of the densest set.
+            let inner = rings
+                .points(sun)
+                .filter(|p| p.0.dot(sun) > SUN_INNER_CAP_COSINE)
+                .count();
+            let expected = MS_DIRECTIONS_AT_SUN as f64 * (1.0 - SUN_INNER_CAP_COSINE) / 2.0;
+            assert!((inner as f64 - expected).abs() <= 1.0, "{inner} inside");
+            for (name, q) in [("even", &even), ("about the sun", &near), ("rings", &rings)] {
                 let total: f64 = q.points(sun).map(|p| p.1).sum();
                 assert!((total / (4.0 * PI) - 1.0).abs() < 1e-9, "{name}: {total}");
                 let up: f64 = q.points(sun).map(|(d, w, _)| w * d.z.max(0.0)).sum();
