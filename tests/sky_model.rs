@@ -45,9 +45,9 @@ fn model_error(name: &str) -> f64 {
 
 #[test]
 fn the_model_is_within_its_measured_error_of_the_path_tracer() {
-    // The bounds are the errors measured at this size (midday 1.6 %,
-    // sunset 3.2 %, twilight 2.7 %, space 3.4 %, Mars at noon 3.4 %, at
-    // sunset 15.7 %; BENCHMARKS.md has them at the bench's size) with
+    // The bounds are the errors measured at this size (midday 1.4 %,
+    // sunset 2.9 %, twilight 2.6 %, space 3.4 %, Mars at noon 3.3 %, at
+    // sunset 15.1 %; BENCHMARKS.md has them at the bench's size) with
     // room for the reference's noise. Before the march stepped densest at
     // a ray's lowest point, and the sums over directions weighted each by
     // its cell's phase function, the first five were 3.7, 7.4, 9.5, 13.8
@@ -141,8 +141,9 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
     // The preview corrects the model by a quarter-size render
     // (render::preview): after its coarse passes the image must be far
     // nearer the converged passes than the model alone (midday at 128×64:
-    // the model 2.0 % off, corrected 0.6 %: the correction denoised by
-    // the coarse passes' spread; 1.0 % without).
+    // the model 0.9 % off, corrected 0.45 %: the correction denoised by
+    // the coarse passes' spread; with the model 2.0 % off, 0.6 %, and
+    // 1.0 % without the denoising).
     use skyrender::render::preview::{Preview, PREVIEW_COARSE_PASSES};
     let mut scene = Scene::preset("midday").unwrap();
     scene.render.width = 128;
@@ -217,7 +218,7 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
         100.0 * noise
     );
     assert!(
-        after < 0.4 * before && after < 0.01,
+        after < 0.6 * before && after < 0.01,
         "{after} vs the model's {before}"
     );
 }

@@ -72,8 +72,9 @@ mod stored;
 use optics::{node_wavelength, Optics, Sources, Spectrum, NODES};
 pub use orders::{forget_shared_tables, keep_shared_tables_on_disk, ModelTables};
 
-/// Steps of a view ray's march.
-const VIEW_STEPS: usize = 32;
+/// Steps of a view ray's march (at 32, the midday sky read 1.3 % off the
+/// path tracer's, 1.0 % at 48 and at 64).
+const VIEW_STEPS: usize = 48;
 /// Rows (elevation) and columns (azimuth from the sun, 0–180°) of the
 /// observer's sky table.
 const VIEW_ROWS: usize = 64;

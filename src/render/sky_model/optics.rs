@@ -391,8 +391,11 @@ pub(super) fn view_zenith_index(mu_v: f64) -> f64 {
     0.5 * (mu.signum() * mu.abs().sqrt() + 1.0) * (MS_VIEW_ZENITHS - 1) as f64
 }
 
-/// View–sun cosines of [`MsTable`]: ν = 1 − 2u², dense about the sun.
-pub(super) const MS_VIEW_ANGLES: usize = 16;
+/// View–sun cosines of [`MsTable`]: ν = 1 − 2u², dense about the sun
+/// (3.7° apart there: at 7.6°, the light scattered two and more times
+/// about the sun at Mars sunset, an aureole a few degrees wide, fell
+/// between two entries).
+pub(super) const MS_VIEW_ANGLES: usize = 32;
 
 pub(super) fn view_cosine_of(i: usize) -> f64 {
     let u = i as f64 / (MS_VIEW_ANGLES - 1) as f64;
