@@ -1,5 +1,5 @@
 //! An approximate sky, computed from the same atmosphere the path tracer
-//! renders (its tables in a few tenths of a second, a view of them in
+//! renders (its tables in about a second, a view of them in
 //! tens of milliseconds): the preview's first frame, shown before the
 //! first Monte Carlo pass is in.
 //!

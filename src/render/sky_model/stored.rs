@@ -31,7 +31,7 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use super::optics::{MsTable, SkyIrradiance, Spectrum, NODES};
 
-/// Files kept in the folder, at most (each about 7 MB).
+/// Files kept in the folder, at most (each about 8 MB).
 pub(super) const MAX_FILES: usize = 8;
 
 /// The first bytes of every file (the format's version in its last).
@@ -57,7 +57,7 @@ pub(super) fn default_folder() -> Option<PathBuf> {
 
 /// FNV-1a over 64-bit words (the bytes' tail zero-padded): the files'
 /// names and checksums, not a defence against a forger, only against the
-/// wrong file and a damaged one. Word by word, it reads a file's 7 MB in
+/// wrong file and a damaged one. Word by word, it reads a file's 8 MB in
 /// about a millisecond.
 #[derive(Clone, Copy)]
 struct Fnv(u64);
