@@ -56,8 +56,8 @@ fn the_model_is_within_its_measured_error_of_the_path_tracer() {
     // next, made the low sky twice too bright away from the sun. Before
     // the orders past the second were summed about the sun, as densely as
     // 3072 directions within 20° of it for the second, Mars at sunset's
-    // aureole read two thirds of the path tracer's (90 % off at the
-    // bench's size). The first Monte Carlo pass is off by 65–1100 %.
+    // aureole read two thirds of the path tracer's (100 % off in the
+    // bench). The first Monte Carlo pass is off by 65–1100 %.
     for (name, bound) in [
         ("midday", 0.035),
         ("sunset", 0.035),
@@ -139,8 +139,9 @@ fn the_preview_shows_the_model_first_and_blends_it_out() {
 #[test]
 fn coarse_passes_bring_the_preview_near_the_reference() {
     // The preview corrects the model by a quarter-size render
-    // (render::preview): after its coarse passes the image must be far
-    // nearer the converged passes than the model alone (midday at 128×64:
+    // (render::preview): after its coarse passes the image must be at
+    // most 0.6 times as far from the converged passes as the model alone
+    // and within 1 % of them (midday at 128×64:
     // the model 0.9 % off, corrected 0.45 %: the correction denoised by
     // the coarse passes' spread; with the model 2.0 % off, 0.6 %, and
     // 1.0 % without the denoising).
