@@ -46,9 +46,11 @@ fn model_error(name: &str) -> f64 {
 #[test]
 fn the_model_is_within_its_measured_error_of_the_path_tracer() {
     // The bounds are the errors measured at this size (midday 1.4 %,
-    // sunset 2.9 %, twilight 2.6 %, space 3.4 %, Mars at noon 3.3 %, at
-    // sunset 15.1 %; BENCHMARKS.md has them at the bench's size) with
-    // room for the reference's noise. Before the march stepped densest at
+    // sunset 2.8 %, twilight 2.7 %, space 3.4 %, Mars at noon 3.3 %, at
+    // sunset 12.7 %; BENCHMARKS.md has them at the bench's size) with
+    // room for the reference's noise. With the orders' tail geometric
+    // from the last ratio, Mars at sunset read 15.1 %: its sky just above
+    // the horizon 1.3–1.6× the path tracer's. Before the march stepped densest at
     // a ray's lowest point, and the sums over directions weighted each by
     // its cell's phase function, the first five were 3.7, 7.4, 9.5, 13.8
     // and 15.4 %: the ground seen from orbit read 0.8–0.9×, and the
@@ -64,7 +66,7 @@ fn the_model_is_within_its_measured_error_of_the_path_tracer() {
         ("twilight", 0.05),
         ("space", 0.05),
         ("mars-noon", 0.065),
-        ("mars-sunset", 0.2),
+        ("mars-sunset", 0.16),
     ] {
         let error = model_error(name);
         eprintln!("{name}: model error {:.1} %", error * 100.0);

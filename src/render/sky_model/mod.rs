@@ -24,7 +24,8 @@
 //!    the aureole), times a smooth factor over the view's zenith and
 //!    azimuth (the low sky's long paths, the ground's light seen from
 //!    above), each entry the ratio of J at that view to the ν table's.
-//!    Orders 2–5 are computed; the rest are each entry's geometric tail.
+//!    Orders 2–5 are computed; the rest are each entry's tail, its ratio
+//!    of orders falling toward the whole field's.
 //!    The sums over directions weight each by the phase function
 //!    averaged over its cell (a haze's or dust's forward peak is narrower
 //!    than their spacing).
