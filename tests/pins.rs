@@ -69,7 +69,7 @@ fn probe_hash(preset: &str) -> u64 {
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
     ("midday", 0x401cb31debd50291, 0x2b158d215cf7a6ac),
-    ("sunset", 0x5a05bd76f3c126b9, 0xc5da574f06bf6700),
+    ("sunset", 0x13a10ea471dfa7f9, 0x350ed8718df5c4e2),
     ("twilight", 0xf182dc2551551a09, 0xf70e2b92d3ef8c13),
     ("space", 0x2414ea41fcf39ccd, 0xa09d945a1cd8d6e5),
 ];

@@ -10,7 +10,8 @@
 //!   guided directions, and roulette and splitting by the guide's skylight.
 //! * **Sunset** (0–3°): the same long grazing rays, and the aureole cut by
 //!   the bright horizon — taken out by the once-scattered light as a
-//!   control variate, which leaves the sun lobe nothing to find.
+//!   control variate, which leaves the sun lobe nothing to find; splitting
+//!   by the guide's skylight as at twilight (the sunlit air is above).
 //! * **Low sun** (3–10°): delta tracking wins again, but multiply scattered
 //!   light is still best splatted along the circles about the sun's axis.
 //! * **Day** (10–30°) and **high sun** (above 30°): plain delta tracking
@@ -154,7 +155,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sky_guide: 0.25,
             sky_guide_sunlit: true,
             ground_guide: 0.5,
-            splitting: false,
+            splitting: true,
             control_variate: true,
             circle_splatting: true,
             draft_weight: 1.0 / 32.0,
