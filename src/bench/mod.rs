@@ -61,7 +61,8 @@ pub struct BenchArgs {
     /// Comma-separated scenes: midday, sunset, twilight, space,
     /// mars-noon, mars-sunset (256×128 equirect) and preview (the app's
     /// default preview) by default; any other preset (afternoon, airliner)
-    /// on request.
+    /// or scene file (`NAME.toml`, its sun, observer and atmosphere as a
+    /// 256×128 equirect map) on request.
     #[arg(long, value_delimiter = ',', value_name = "A,B,...")]
     pub scenes: Option<Vec<String>>,
     /// Worker threads (default: all cores).
@@ -137,15 +138,23 @@ pub fn noise_target(scene: &str) -> Option<f64> {
 
 /// The scene benchmarked under `name`: a preset as a 256×128 equirect map
 /// (the preset's sun, observer and atmosphere; [`DEFAULT_SCENES`] by
-/// default, any preset on request), or `preview`, the app's default preview
-/// scene.
+/// default, any preset on request), a scene file (a name ending in
+/// `.toml`) the same way, or `preview`, the app's default preview scene.
 pub fn bench_scene(name: &str) -> Result<Scene, String> {
     if name.eq_ignore_ascii_case(PREVIEW) {
         return Ok(crate::render::service::default_preview_scene());
     }
+    let is_file = std::path::Path::new(name)
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("toml"));
     // Scene::preset's error names the unknown preset and the valid ones.
-    let mut scene =
-        Scene::preset(name).map_err(|e| format!("bench: {e} (or the scene '{PREVIEW}')"))?;
+    let mut scene = if is_file {
+        Scene::load(std::path::Path::new(name)).map_err(|e| format!("bench: {e}"))?
+    } else {
+        Scene::preset(name).map_err(|e| {
+            format!("bench: {e} (or the scene '{PREVIEW}', or a scene file NAME.toml)")
+        })?
+    };
     scene.camera.kind = CameraKind::Equirect;
     scene.render.width = BENCH_WIDTH;
     scene.render.height = BENCH_HEIGHT;
@@ -436,7 +445,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         "noise_ground_at_budget / noise_whole_at_budget: the same noise over the pixels whose centre's ray meets the ground, and over every pixel with a ray (lit, above the air), sun cone excluded; time_to_1pct_4k_s: time to 1 % over the whole image of a 4096x2048 render, extrapolated (noise ∝ 1/sqrt(time), time ∝ pixels)".into(),
         "noise_neighbour_correlation: the largest correlation of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of the preview's first frame, the approximate sky model, minus the reference over the whole image (the mean of A and B, or with --reference-budget of two further renders of that time each, seeds + 3 and + 4: details.run.reference_noise), relative to the mean, the reference's own noise removed in quadrature; first_pass_error: the same for one Monte Carlo pass (seed + 2); preview_error_2s: the same for what the preview shows 2 s after a change (the last image render::preview completed by then: the model corrected by quarter-size passes, then the full passes blended with it)".into(),
         format!(
-            "scenes: presets as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
+            "scenes: presets (or scene files) as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),
         "first_frame_ms: median of Renderer::new + the sky model's image at the app's default preview size (320x160), the model's tables for the atmosphere kept from before: what the app shows first after a change of sun, camera or size; details.first_frame_cold_ms: the same with the tables made anew (the app's first start, a new atmosphere); details.first_frame_disk_ms: with them read from the disk's cache (a later start, an atmosphere seen before)".into(),
         "fast: the fast mode (render --mode fast) at fast_scale 2 and 4 (coarse renders of 128x64 and 64x32), two images (seeds + 3, + 4) of budget/2 each; bias: RMS of their mean minus the reference (the mean of A and B) over the whole image relative to the reference's mean, both noises removed in quadrature; time_to_1pct_4k_s: a 4096x2048 export at the default scale 8 (512x256 coarse), extrapolated from the coarse render's noise (time ∝ coarse pixels) plus composing (∝ pixels)".into(),
@@ -626,6 +635,31 @@ mod tests {
         );
         assert_eq!(p.sun, Scene::preset("midday").unwrap().sun);
         assert!(bench_scene("noon").unwrap_err().contains("midday"));
+    }
+
+    #[test]
+    fn a_scene_file_is_benchmarked_as_a_preset_is() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = dir.path().join("low.toml");
+        std::fs::write(
+            &path,
+            "[sun]\nelevation_deg = 6.0\nazimuth_deg = 200.0\n\n\
+             [camera]\nkind = \"perspective\"\n\n\
+             [render]\nwidth = 40\nheight = 30\n",
+        )
+        .unwrap();
+        let s = bench_scene(path.to_str().unwrap()).unwrap();
+        assert_eq!(
+            (s.camera.kind, s.render.width, s.render.height),
+            (CameraKind::Equirect, 256, 128)
+        );
+        assert_eq!((s.sun.elevation_deg, s.sun.azimuth_deg), (6.0, 200.0));
+        // A missing file is named in the error, and nothing runs.
+        let missing = dir.path().join("none.toml");
+        let err = bench_scene(missing.to_str().unwrap()).unwrap_err();
+        assert!(err.contains("none.toml"), "{err}");
+        std::fs::write(&path, "[sun]\nelevation_deg = \"high\"\n").unwrap();
+        assert!(bench_scene(path.to_str().unwrap()).is_err());
     }
 
     #[derive(clap::Parser)]
