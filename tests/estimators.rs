@@ -664,6 +664,7 @@ fn sky_guide_is_unbiased() {
                 IntegratorOptions {
                     camera_samples: Some(0),
                     sky_guide: Some(0.0),
+                    ground_guide: Some(0.0),
                     forced_collision_depth: 0,
                     max_scattering_order: order,
                     ..IntegratorOptions::default()
@@ -832,6 +833,7 @@ fn assert_plan_agrees(
         TechniquePlan::outside_a_scene(&IntegratorOptions {
             camera_samples: Some(0),
             sky_guide: Some(0.0),
+            ground_guide: Some(0.0),
             forced_collision_depth: 0,
             ..IntegratorOptions::default()
         }),
@@ -848,7 +850,8 @@ fn ground_bounces_drawn_by_the_guide_are_unbiased() {
     // the cosine density, one-sample MIS; a direction below the horizon
     // ends the path) must match plain delta tracking's cosine bounces: on
     // the ground and in the sky, at sunset and twilight from 2 m (the camera
-    // ray's own ground branches) and by day from an airliner's 10 km.
+    // ray's own ground branches), by day from an airliner's 10 km and with
+    // a high sun from 2 m.
     let atmosphere = Atmosphere::new(AtmosphereParams::default());
     let medium = Medium::new(&atmosphere);
     let radius = atmosphere.params.planet_radius_m;
@@ -858,6 +861,7 @@ fn ground_bounces_drawn_by_the_guide_are_unbiased() {
         (2.0, (270.0, 2.0), (90.0, 30.0)),
         (2.0, (270.0, -4.0), (250.0, -10.0)),
         (10_000.0, (180.0, 30.0), (90.0, -30.0)),
+        (2.0, (180.0, 50.0), (150.0, -15.0)),
     ];
     for (k, (altitude_m, (sun_az, sun_el), (az, el))) in (0..).zip(cases) {
         let origin = DVec3::new(0.0, 0.0, radius + altitude_m);

@@ -17,6 +17,11 @@
 //! * **Day** (10–30°) and **high sun** (above 30°): plain delta tracking
 //!   with camera-ray densities; a high sun wants a narrower lobe.
 //!
+//! At every elevation half the ground's bounces follow the guide's table
+//! of the once-scattered light arriving there: the sky's light on the
+//! ground comes from low toward the sun, where the cosine density is
+//! small, the more so the lower the sun.
+//!
 //! Every switch here chooses among unbiased estimators: the expected image
 //! is the same on either side of a boundary, only the noise differs. The
 //! boundaries were measured on the Earth's scenes (the decisions table of
@@ -170,7 +175,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.3,
             sky_guide: 0.25,
             sky_guide_sunlit: false,
-            ground_guide: 0.0,
+            ground_guide: 0.5,
             splitting: false,
             control_variate: false,
             circle_splatting: true,
@@ -186,7 +191,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.3,
             sky_guide: 0.25,
             sky_guide_sunlit: false,
-            ground_guide: 0.0,
+            ground_guide: 0.5,
             splitting: false,
             control_variate: false,
             circle_splatting: false,
@@ -202,7 +207,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             sun_lobe: 0.15,
             sky_guide: 0.25,
             sky_guide_sunlit: false,
-            ground_guide: 0.0,
+            ground_guide: 0.5,
             splitting: false,
             control_variate: false,
             circle_splatting: false,

@@ -63,9 +63,9 @@
 //! of incoming once-scattered light ([`super::guide`]): there the light
 //! comes from the sunlit air above the horizon, which no phase function
 //! about a fixed axis finds. With the sun low, sunlit points are guided
-//! too (`sky_guide_sunlit`), and so are the ground's bounces
-//! (`ground_guide`, `Integrator::bounce_direction`): the sky's light on
-//! the ground then comes from low over the sun's azimuth, where the
+//! too (`sky_guide_sunlit`). Half the ground's bounces follow the table
+//! at every sun elevation (`ground_guide`, `Integrator::bounce_direction`):
+//! the sky's light on the ground comes from low toward the sun, where the
 //! cosine density is smallest.
 //!
 //! **Roulette and splitting by importance** (`splitting`, at twilight): at a real scattering of a low-sun
