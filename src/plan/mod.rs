@@ -106,27 +106,52 @@ pub struct Conditions {
     /// Whether multiply scattered light can be splatted along circles: the
     /// observer inside the atmosphere and the sun off the zenith and nadir.
     pub circles: bool,
+    /// Whether the observer is low in the air: where it is at least
+    /// [`LOW_OBSERVER_DENSITY`] times as dense as at the ground. By day the
+    /// regime table splats only there ([`regime::Splatting::Low`]).
+    pub observer_low: bool,
 }
+
+/// The air's density at the observer, over the ground's, above which the
+/// observer is low in the air ([`Conditions::observer_low`]): by day the
+/// splats paid from 2 m and from 2 km (0.8 of the ground's density) and
+/// lost from 10 km (0.34; `BENCHMARKS.md`, circle splatting); a half lies
+/// between, about 6.7 km up on Earth, and was not measured itself.
+pub const LOW_OBSERVER_DENSITY: f64 = 0.5;
 
 impl Conditions {
     /// Conditions of a scene whose sun stands `sun_elevation_deg` up in
-    /// `atmosphere`; `circles` as [`Self::circles`].
+    /// `atmosphere`; `circles` as [`Self::circles`]; an observer low in
+    /// the air (see [`Self::with_observer_density`]).
     pub fn new(sun_elevation_deg: f64, atmosphere: &AtmosphereParams, circles: bool) -> Self {
         Self {
             sun_elevation_deg,
             haze_fits_control: control_table_holds(atmosphere),
             circles,
+            observer_low: true,
+        }
+    }
+
+    /// The same conditions for an observer where the air is
+    /// `density_over_ground` times as dense as at the ground.
+    #[must_use]
+    pub fn with_observer_density(self, density_over_ground: f64) -> Self {
+        Self {
+            observer_low: density_over_ground >= LOW_OBSERVER_DENSITY,
+            ..self
         }
     }
 
     /// A day sky (the [`Regime::Day`] row) without circles to splat along:
     /// the plan of an integrator built outside a scene, such as in tests
-    /// of single estimators, where every sun-dependent technique is off
-    /// unless set.
+    /// of single estimators, where every technique that depends on the
+    /// sun's height is off unless set (the ground guide, on at every
+    /// height, is on).
     pub const DAY: Self = Self {
         sun_elevation_deg: 20.0,
         haze_fits_control: true,
         circles: false,
+        observer_low: true,
     };
 }
 
@@ -264,7 +289,12 @@ impl TechniquePlan {
             .control_variate
             .unwrap_or(row.control_variate && conditions.haze_fits_control);
         let camera_samples_asked = options.camera_samples.unwrap_or(CAMERA_SAMPLES);
-        let circle_splatting = options.circle_splatting.unwrap_or(row.circle_splatting)
+        let splats_here = match row.circle_splatting {
+            regime::Splatting::Off => false,
+            regime::Splatting::Low => conditions.observer_low,
+            regime::Splatting::On => true,
+        };
+        let circle_splatting = options.circle_splatting.unwrap_or(splats_here)
             && camera_samples_asked > 0
             && options.next_event_estimation
             && conditions.circles;
@@ -406,7 +436,6 @@ mod tests {
             let elevation = match regime {
                 Regime::Twilight => -4.0,
                 Regime::Sunset => 2.0,
-                Regime::LowSun => 5.0,
                 Regime::Day => 20.0,
                 Regime::HighSun => 45.0,
             };
@@ -420,16 +449,17 @@ mod tests {
             assert_eq!(plan.directions.ground_guide, row.ground_guide);
             assert_eq!(plan.termination.splitting, row.splitting);
             assert_eq!(plan.control_variate, row.control_variate);
-            assert_eq!(plan.circle_splatting, row.circle_splatting);
+            let splats = row.circle_splatting != regime::Splatting::Off;
+            assert_eq!(plan.circle_splatting, splats);
             // The ground's splats go with the air's.
-            assert_eq!(plan.ground_splatting, row.circle_splatting);
+            assert_eq!(plan.ground_splatting, splats);
             let lobe = if row.control_variate {
                 regime::CONTROL_SUN_LOBE
             } else {
                 row.sun_lobe
             };
             assert_eq!(plan.directions.sun_lobe, lobe);
-            let points = if row.circle_splatting {
+            let points = if splats {
                 SPLAT_CAMERA_SAMPLES
             } else {
                 CAMERA_SAMPLES
@@ -509,6 +539,22 @@ mod tests {
         let plan = TechniquePlan::new(&delta_camera, &at(-4.0));
         assert!(!plan.circle_splatting);
         assert_eq!(plan.camera.importance, 0.0);
+        // By day only an observer low in the air splats unless asked; at
+        // sunset and twilight every observer in the air does; never with
+        // a high sun.
+        let splats = |e: f64, density: f64| {
+            TechniquePlan::new(&default, &at(e).with_observer_density(density)).circle_splatting
+        };
+        assert!(splats(6.0, 1.0) && splats(20.0, 0.8) && splats(29.0, 0.5));
+        assert!(!splats(6.0, 0.34) && !splats(20.0, 0.49));
+        assert!(splats(2.0, 0.34) && splats(-4.0, 0.1));
+        assert!(!splats(45.0, 1.0));
+        let asked = IntegratorOptions {
+            circle_splatting: Some(true),
+            ..IntegratorOptions::default()
+        };
+        let high_day = at(20.0).with_observer_density(0.34);
+        assert!(TechniquePlan::new(&asked, &high_day).circle_splatting);
         // The control variate: set on, the lobe yields; in haze its table
         // cannot hold, it stays off unless set; never with an order limit.
         let control = IntegratorOptions {

@@ -12,10 +12,12 @@
 //!   the bright horizon — taken out by the once-scattered light as a
 //!   control variate, which leaves the sun lobe nothing to find; splitting
 //!   by the guide's skylight as at twilight (the sunlit air is above).
-//! * **Low sun** (3–10°): delta tracking wins again, but multiply scattered
-//!   light is still best splatted along the circles about the sun's axis.
-//! * **Day** (10–30°) and **high sun** (above 30°): plain delta tracking
-//!   with camera-ray densities; a high sun wants a narrower lobe.
+//! * **Day** (3–30°): delta tracking wins again, and for an observer low
+//!   in the air multiply scattered light is still best splatted along the
+//!   circles about the sun's axis; from high up (an airliner's 10 km) the
+//!   splats cost more than they save.
+//! * **High sun** (above 30°): plain delta tracking with camera-ray
+//!   densities and a narrower lobe.
 //!
 //! At every elevation half the ground's bounces follow the guide's table
 //! of the once-scattered light arriving there: the sky's light on the
@@ -39,9 +41,7 @@ pub enum Regime {
     Twilight,
     /// The sun 0–3° above the horizon.
     Sunset,
-    /// The sun 3–10° up.
-    LowSun,
-    /// The sun 10–30° up.
+    /// The sun 3–30° up.
     Day,
     /// The sun more than 30° up.
     HighSun,
@@ -51,13 +51,11 @@ impl Regime {
     /// The regime of a sun `sun_elevation_deg` above the observer's horizon.
     /// Each band includes its lower bound, but 30° itself is day.
     pub fn at(sun_elevation_deg: f64) -> Self {
-        let [horizon, low, high, zenithal] = BOUNDARIES_DEG;
+        let [horizon, low, zenithal] = BOUNDARIES_DEG;
         if sun_elevation_deg < horizon {
             Self::Twilight
         } else if sun_elevation_deg < low {
             Self::Sunset
-        } else if sun_elevation_deg < high {
-            Self::LowSun
         } else if sun_elevation_deg <= zenithal {
             Self::Day
         } else {
@@ -75,7 +73,6 @@ impl Regime {
         match self {
             Self::Twilight => "twilight",
             Self::Sunset => "sunset",
-            Self::LowSun => "low sun",
             Self::Day => "day",
             Self::HighSun => "high sun",
         }
@@ -84,9 +81,21 @@ impl Regime {
 
 /// The sun elevations, degrees, where the regimes meet: the horizon
 /// (twilight | sunset), where delta tracking overtakes segment estimates
-/// (sunset | low sun), where splatting along circles stops paying (low sun
-/// | day), and where a narrower sun lobe starts to pay (day | high sun).
-pub const BOUNDARIES_DEG: [f64; 4] = [0.0, 3.0, 10.0, 30.0];
+/// (sunset | day), and where a narrower sun lobe starts to pay and
+/// splatting along circles stops paying (day | high sun).
+pub const BOUNDARIES_DEG: [f64; 3] = [0.0, 3.0, 30.0];
+
+/// Where a regime splats multiply scattered light along circles.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Splatting {
+    /// Never by default.
+    Off,
+    /// For an observer low in the air ([`super::Conditions::observer_low`]).
+    Low,
+    /// Wherever there are circles.
+    On,
+}
 
 /// What a regime turns on when the scene leaves a switch unset.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
@@ -117,7 +126,7 @@ pub struct RegimeDefaults {
     pub control_variate: bool,
     /// Multiply scattered light splatted along circles
     /// (`circle_splatting`), where the observer is in the air.
-    pub circle_splatting: bool,
+    pub circle_splatting: Splatting,
     /// The first (draft) pass's weight in the film's average. Weights ∝
     /// 1/variance minimise the mean's, and the draft's plain delta-tracked
     /// camera paths carry far more variance per path than a full pass's,
@@ -133,7 +142,7 @@ pub struct RegimeDefaults {
 pub const CONTROL_SUN_LOBE: f64 = 0.0;
 
 /// The defaults of each regime, in the order of [`Regime`].
-pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
+pub const REGIMES: [(Regime, RegimeDefaults); 4] = [
     (
         Regime::Twilight,
         RegimeDefaults {
@@ -146,7 +155,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             ground_guide: 0.5,
             splitting: true,
             control_variate: false,
-            circle_splatting: true,
+            circle_splatting: Splatting::On,
             draft_weight: 1.0 / 128.0,
         },
     ),
@@ -162,24 +171,8 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             ground_guide: 0.5,
             splitting: true,
             control_variate: true,
-            circle_splatting: true,
+            circle_splatting: Splatting::On,
             draft_weight: 1.0 / 32.0,
-        },
-    ),
-    (
-        Regime::LowSun,
-        RegimeDefaults {
-            sunlight_samples: 0,
-            camera_branches: 4,
-            camera_importance: 0.0,
-            sun_lobe: 0.3,
-            sky_guide: 0.25,
-            sky_guide_sunlit: false,
-            ground_guide: 0.5,
-            splitting: false,
-            control_variate: false,
-            circle_splatting: true,
-            draft_weight: 1.0 / 8.0,
         },
     ),
     (
@@ -194,7 +187,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             ground_guide: 0.5,
             splitting: false,
             control_variate: false,
-            circle_splatting: false,
+            circle_splatting: Splatting::Low,
             draft_weight: 1.0 / 8.0,
         },
     ),
@@ -210,7 +203,7 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
             ground_guide: 0.5,
             splitting: false,
             control_variate: false,
-            circle_splatting: false,
+            circle_splatting: Splatting::Off,
             draft_weight: 1.0 / 8.0,
         },
     ),
@@ -218,12 +211,11 @@ pub const REGIMES: [(Regime, RegimeDefaults); 5] = [
 
 /// The sun elevations of a regime as the README writes them.
 fn band(regime: Regime) -> String {
-    let [horizon, low, high, zenithal] = BOUNDARIES_DEG;
+    let [horizon, low, zenithal] = BOUNDARIES_DEG;
     match regime {
         Regime::Twilight => format!("below {horizon}°"),
         Regime::Sunset => format!("{horizon}–{low}°"),
-        Regime::LowSun => format!("{low}–{high}°"),
-        Regime::Day => format!("{high}–{zenithal}°"),
+        Regime::Day => format!("{low}–{zenithal}°"),
         Regime::HighSun => format!("above {zenithal}°"),
     }
 }
@@ -233,6 +225,14 @@ fn on(b: bool) -> &'static str {
         "on"
     } else {
         "off"
+    }
+}
+
+fn splats(s: Splatting) -> &'static str {
+    match s {
+        Splatting::Off => "off",
+        Splatting::Low => "low observer",
+        Splatting::On => "on",
     }
 }
 
@@ -261,7 +261,7 @@ pub fn markdown_table() -> String {
             d.ground_guide,
             on(d.splitting),
             on(d.control_variate),
-            on(d.circle_splatting),
+            splats(d.circle_splatting),
             fraction(d.draft_weight),
         ));
     }
@@ -285,7 +285,7 @@ mod tests {
         assert_eq!(Regime::at(-1e-9), Regime::Twilight);
         assert_eq!(Regime::at(0.0), Regime::Sunset);
         assert_eq!(Regime::at(2.999), Regime::Sunset);
-        assert_eq!(Regime::at(3.0), Regime::LowSun);
+        assert_eq!(Regime::at(3.0), Regime::Day);
         assert_eq!(Regime::at(10.0), Regime::Day);
         assert_eq!(Regime::at(30.0), Regime::Day);
         assert_eq!(Regime::at(30.001), Regime::HighSun);
