@@ -106,7 +106,7 @@ pub struct Conditions {
     /// Whether multiply scattered light can be splatted along circles: the
     /// observer inside the atmosphere and the sun off the zenith and nadir.
     pub circles: bool,
-    /// Whether the observer is low in the air: where it is at least
+    /// Whether the observer is low in the air: where the air is at least
     /// [`LOW_OBSERVER_DENSITY`] times as dense as at the ground. By day the
     /// regime table splats only there ([`regime::Splatting::Low`]).
     pub observer_low: bool,
