@@ -289,12 +289,9 @@ impl TechniquePlan {
             .control_variate
             .unwrap_or(row.control_variate && conditions.haze_fits_control);
         let camera_samples_asked = options.camera_samples.unwrap_or(CAMERA_SAMPLES);
-        let splats_here = match row.circle_splatting {
-            regime::Splatting::Off => false,
-            regime::Splatting::Low => conditions.observer_low,
-            regime::Splatting::On => true,
-        };
-        let circle_splatting = options.circle_splatting.unwrap_or(splats_here)
+        let circle_splatting = options
+            .circle_splatting
+            .unwrap_or(row.circle_splatting.applies(conditions.observer_low))
             && camera_samples_asked > 0
             && options.next_event_estimation
             && conditions.circles;
@@ -449,7 +446,7 @@ mod tests {
             assert_eq!(plan.directions.ground_guide, row.ground_guide);
             assert_eq!(plan.termination.splitting, row.splitting);
             assert_eq!(plan.control_variate, row.control_variate);
-            let splats = row.circle_splatting != regime::Splatting::Off;
+            let splats = row.circle_splatting.applies(true);
             assert_eq!(plan.circle_splatting, splats);
             // The ground's splats go with the air's.
             assert_eq!(plan.ground_splatting, splats);

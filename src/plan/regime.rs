@@ -97,6 +97,18 @@ pub enum Splatting {
     On,
 }
 
+impl Splatting {
+    /// Whether the regime splats for an observer low in the air
+    /// (`observer_low`) or not.
+    pub fn applies(self, observer_low: bool) -> bool {
+        match self {
+            Self::Off => false,
+            Self::Low => observer_low,
+            Self::On => true,
+        }
+    }
+}
+
 /// What a regime turns on when the scene leaves a switch unset.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize)]
 pub struct RegimeDefaults {

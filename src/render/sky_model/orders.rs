@@ -410,7 +410,9 @@ fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
         (last_table, last_sky) = (table, sky);
         (table, sky) = (next_table, next_sky);
     }
-    // The field's ratio of its last two orders, over the ν table.
+    // The field's ratio of its last two orders, over the ν table; the
+    // ground's irradiance tends to the same ratio (one operator's largest
+    // eigenvalue), so its tail shares the floor.
     let sum = |t: &MsTable| t.values.iter().flatten().flatten().sum::<f64>();
     let floor = sum(&table) / sum(&last_table);
     let tables = older_table
