@@ -8,7 +8,8 @@
 //! camera-ray densities and branches, segment estimates and the sky guide
 //! (sunset, twilight), the control variate (sunset), roulette and splitting
 //! and splatting along circles, the air's and the ground's (sunset,
-//! twilight), and the view from orbit (space).
+//! twilight), the sky model's light as the ground's control (midday,
+//! sunset, twilight), and the view from orbit (space).
 
 use skyrender::render::Renderer;
 use skyrender::Scene;
@@ -68,9 +69,9 @@ fn probe_hash(preset: &str) -> u64 {
 
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
-    ("midday", 0x7808a220b187059d, 0xfe9b787e00959774),
-    ("sunset", 0x13a10ea471dfa7f9, 0x350ed8718df5c4e2),
-    ("twilight", 0xf182dc2551551a09, 0xf70e2b92d3ef8c13),
+    ("midday", 0x4b51ef7e7c98d4e5, 0x4657fb984c6cdf7d),
+    ("sunset", 0xfff53f7b348b4a91, 0x13cf60967bf0eb01),
+    ("twilight", 0xc7035ee0e0a8c5cd, 0xee3b0a114cd198ac),
     ("space", 0x3d4744fd8fc585c2, 0xa09d945a1cd8d6e5),
 ];
 

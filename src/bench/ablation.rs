@@ -112,6 +112,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("ground_splatting=false", |s| {
             s.render.integrator.ground_splatting = Some(false);
         }),
+        ("ground_control=false", |s| {
+            s.render.integrator.ground_control = Some(false);
+        }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
         }),

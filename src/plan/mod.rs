@@ -53,6 +53,15 @@ pub const MAX_FORCED_COLLISION_DEPTH: u32 = 64;
 /// decisions table of `BENCHMARKS.md`).
 pub const CONTROL_MAX_AEROSOL_DEPTH: f64 = 4.0;
 
+/// Largest vertical aerosol optical depth at 550 nm with the ground's
+/// control on by default ([`IntegratorOptions::ground_control`]). The sky
+/// model follows the light order by order up to the fifth and sums the rest
+/// as a tail; in haze this deep most of the light is of higher orders, and
+/// where the model misses it the control's own spread swamps the image (at
+/// 25, four 2-pass renders of a 16×8 sunset averaged a negative luminance;
+/// the estimate stays unbiased either way).
+pub const GROUND_CONTROL_MAX_AEROSOL_DEPTH: f64 = 4.0;
+
 /// Aerosol asymmetry parameters g (from, to) with the control variate on by
 /// default where there are aerosols. The expansion stops at degree
 /// [`crate::render::control::L_MAX`] = 8, and a Henyey–Greenstein aureole
@@ -110,6 +119,11 @@ pub struct Conditions {
     /// [`LOW_OBSERVER_DENSITY`] times as dense as at the ground. By day the
     /// regime table splats only there ([`regime::Splatting::Low`]).
     pub observer_low: bool,
+    /// Whether the observer is inside the atmosphere (below its top).
+    pub observer_in_air: bool,
+    /// Whether the haze is thin enough for the sky model to stand in for
+    /// the ground's light ([`GROUND_CONTROL_MAX_AEROSOL_DEPTH`]).
+    pub haze_fits_model: bool,
 }
 
 /// The air's density at the observer, over the ground's, above which the
@@ -129,6 +143,18 @@ impl Conditions {
             haze_fits_control: control_table_holds(atmosphere),
             circles,
             observer_low: true,
+            observer_in_air: true,
+            haze_fits_model: atmosphere.aerosol_optical_depth(550.0)
+                <= GROUND_CONTROL_MAX_AEROSOL_DEPTH,
+        }
+    }
+
+    /// The same conditions for an observer inside the atmosphere or not.
+    #[must_use]
+    pub fn with_observer_in_air(self, in_air: bool) -> Self {
+        Self {
+            observer_in_air: in_air,
+            ..self
         }
     }
 
@@ -152,6 +178,8 @@ impl Conditions {
         haze_fits_control: true,
         circles: false,
         observer_low: true,
+        observer_in_air: true,
+        haze_fits_model: true,
     };
 }
 
@@ -270,6 +298,10 @@ pub struct TechniquePlan {
     /// The skylight the ground reflects splatted along circles (only with
     /// `circle_splatting`).
     pub ground_splatting: bool,
+    /// The model's skylight as a control variate at ground bounces (never
+    /// with a limit on the orders, which it would mix, nor with the
+    /// model's own cells as the control, which hold the ground's).
+    pub ground_control: bool,
     /// How pixel samples draw their first random numbers.
     pub sampler: Sampler,
     /// The first pass's weight in the film's average (1 for later ones).
@@ -340,6 +372,11 @@ impl TechniquePlan {
             control_source: options.control_source.unwrap_or_default(),
             circle_splatting,
             ground_splatting: circle_splatting && options.ground_splatting.unwrap_or(true),
+            ground_control: options
+                .ground_control
+                .unwrap_or(conditions.observer_in_air && conditions.haze_fits_model)
+                && options.max_scattering_order.is_none()
+                && !(control_variate && options.control_source == Some(ControlSource::Model)),
             sampler: options.sampler,
             draft_weight: row.draft_weight,
         }
@@ -386,6 +423,7 @@ impl TechniquePlan {
                 ..self.termination
             },
             control_variate: false,
+            ground_control: false,
             sampler: Sampler::Independent,
             ..*self
         }
@@ -393,11 +431,13 @@ impl TechniquePlan {
 
     /// The plan that fills the control variate's table: this plan's
     /// techniques, once-scattered light only (orders ≤ 2 from the table's
-    /// point, which starts at order 1), no control of its own.
+    /// point, which starts at order 1), no control of its own (nor the
+    /// ground's, which holds every order).
     #[must_use]
     pub fn for_control_table(&self) -> Self {
         Self {
             control_variate: false,
+            ground_control: false,
             termination: TerminationPlan {
                 max_scattering_order: 2,
                 ..self.termination
@@ -498,6 +538,51 @@ mod tests {
             assert!(!plan.termination.splitting && !plan.control_variate);
             assert!(!plan.circle_splatting);
         }
+    }
+
+    #[test]
+    fn the_grounds_control_keeps_out_of_drafts_tables_and_order_limits() {
+        let at = |e| Conditions::new(e, &haze(), true);
+        let default = IntegratorOptions::default();
+        for e in [-4.0, 2.0, 20.0, 45.0] {
+            let plan = TechniquePlan::new(&default, &at(e));
+            assert!(plan.ground_control, "{e}°");
+            // Not in the draft, nor in the control table's paths (their
+            // orders are limited), nor under a limit on the orders.
+            assert!(!plan.first_pass().ground_control);
+            assert!(!plan.for_control_table().ground_control);
+            let limited = IntegratorOptions {
+                max_scattering_order: Some(2),
+                ..IntegratorOptions::default()
+            };
+            assert!(!TechniquePlan::new(&limited, &at(e)).ground_control);
+            let off = IntegratorOptions {
+                ground_control: Some(false),
+                ..IntegratorOptions::default()
+            };
+            assert!(!TechniquePlan::new(&off, &at(e)).ground_control);
+            // From above the air, or in thick haze, it is off unless asked
+            // for.
+            let above = at(e).with_observer_in_air(false);
+            assert!(!TechniquePlan::new(&default, &above).ground_control);
+            let thick = Conditions {
+                haze_fits_model: false,
+                ..at(e)
+            };
+            assert!(!TechniquePlan::new(&default, &thick).ground_control);
+            let on = IntegratorOptions {
+                ground_control: Some(true),
+                ..IntegratorOptions::default()
+            };
+            assert!(TechniquePlan::new(&on, &above).ground_control);
+        }
+        // The model's own cells control the ground where they are on.
+        let model = IntegratorOptions {
+            control_source: Some(ControlSource::Model),
+            ..IntegratorOptions::default()
+        };
+        assert!(!TechniquePlan::new(&model, &at(2.0)).ground_control);
+        assert!(TechniquePlan::new(&model, &at(45.0)).ground_control);
     }
 
     #[test]

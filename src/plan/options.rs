@@ -107,6 +107,17 @@ pub struct IntegratorOptions {
     /// the pixels of 16 points on their circle. Only with
     /// `circle_splatting`. Unset: on wherever `circle_splatting` is.
     pub ground_splatting: Option<bool>,
+    /// The approximate sky model's light on the ground as a control
+    /// variate at every ground bounce: the bounce adds the exact cosine
+    /// integral of the model's light on a grid of directions, and its path
+    /// estimates only what the model misses
+    /// ([`crate::render::ground_sky`]). Needs a ground that reflects; not
+    /// with `control_source = "model"`, which controls the ground itself.
+    /// Unset: on for an observer inside the atmosphere (from above it the
+    /// ground's pixels hold mostly the air's light in front of them, and
+    /// the look-ups cost more than they save) in haze the model holds
+    /// ([`super::GROUND_CONTROL_MAX_AEROSOL_DEPTH`]).
+    pub ground_control: Option<bool>,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -137,6 +148,7 @@ impl Default for IntegratorOptions {
             control_source: None,
             circle_splatting: None,
             ground_splatting: None,
+            ground_control: None,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }

@@ -24,6 +24,7 @@ mod film_halves;
 pub mod film_layers;
 pub mod film_spectral;
 pub mod ground_circles;
+pub mod ground_sky;
 pub mod guide;
 pub mod integrator;
 pub mod lane_values;

@@ -159,8 +159,8 @@ impl Renderer {
         // From above the air (where the scene refuses splatting when asked
         // for) or without circles (the sun at the zenith or nadir), the
         // camera's branches keep every order.
-        let circles = scene.observer.altitude_m < scene.atmosphere.top_altitude_m
-            && circles::has_circles(observer_m, sun_direction);
+        let in_air = scene.observer.altitude_m < scene.atmosphere.top_altitude_m;
+        let circles = in_air && circles::has_circles(observer_m, sun_direction);
         let ground_density = atmosphere.air_number_density_m3(0.0);
         let density_over_ground = if ground_density > 0.0 {
             atmosphere.air_number_density_m3(scene.observer.altitude_m) / ground_density
@@ -170,7 +170,8 @@ impl Renderer {
         let plan = TechniquePlan::new(
             &scene.render.integrator,
             &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles)
-                .with_observer_density(density_over_ground),
+                .with_observer_density(density_over_ground)
+                .with_observer_in_air(in_air),
         );
         let lane_table = LaneTable::new(&medium, cmf.range_nm(), solar_source(scene));
         Ok(Self {

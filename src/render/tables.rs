@@ -15,6 +15,7 @@ use super::camera::Camera;
 use super::circles::CircleSplatter;
 use super::control::{CellCoefficients, CellProjection, RadianceTable, COEFFICIENTS, NODES};
 use super::ground_circles::GroundSplatter;
+use super::ground_sky::GroundSky;
 use super::guide::SkyGuide;
 use super::integrator::Integrator;
 use super::lanes::LaneTable;
@@ -43,6 +44,9 @@ pub struct Tables {
     /// The once-scattered light's table for the control variate, where the
     /// plan turns it on.
     pub control: Option<RadianceTable>,
+    /// The model's skylight on the ground for the ground's control
+    /// variate, where the plan turns it on and the ground reflects.
+    pub ground_sky: Option<GroundSky>,
     /// The splatter, built on first use (after the draft pass).
     splatter: OnceLock<Option<CircleSplatter>>,
     /// The ground's splatter, likewise.
@@ -96,10 +100,13 @@ impl Tables {
                 projection,
             )
         });
+        let ground_sky = (plan.ground_control && medium.ground_albedo_max > 0.0)
+            .then(|| GroundSky::new(ModelTables::shared(medium, lane_table), sun_direction));
         Self {
             camera_densities,
             sky_guide,
             control,
+            ground_sky,
             splatter: OnceLock::new(),
             ground_splatter: OnceLock::new(),
         }
@@ -119,9 +126,13 @@ impl Tables {
             Some(guide) => integrator.with_sky_guide(guide),
             None => integrator,
         };
-        match &self.control {
+        let integrator = match &self.control {
             Some(table) => integrator.with_control(table),
             None => integrator,
+        };
+        match &self.ground_sky {
+            Some(sky) if plan.ground_control => integrator.with_ground_sky(sky),
+            _ => integrator,
         }
     }
 

@@ -3,8 +3,8 @@
 //! [`Integrator::ground_bounce`]).
 
 use super::{
-    cosine_sample_hemisphere, ground_point, DVec3, GuideAt, Integrator, Lanes, Light, Radiance,
-    Rng, SpectralLanes, PI,
+    cosine_sample_hemisphere, ground_point, DVec3, GroundSkyAt, GuideAt, Integrator, Lanes, Light,
+    Radiance, Rng, SpectralLanes, PI,
 };
 
 impl<'a> Integrator<'a> {
@@ -46,11 +46,14 @@ impl<'a> Integrator<'a> {
         rng: &mut Rng,
     ) -> Radiance {
         let mut radiance = Light::default();
+        let sky = self.ground_sky(normal, lanes);
+        Self::ground_sky_in(sky.as_ref(), &lanes.ground_albedo, lanes, &mut radiance);
         let guide = self.bounce_guide(normal);
         let Some((bounce, reflect)) = self.bounce_direction(normal, guide.as_ref(), rng) else {
             return radiance.total;
         };
         let beta = Lanes::from_fn(|j| lanes.ground_albedo[j] * reflect);
+        Self::ground_sky_out(sky.as_ref(), bounce, &beta, lanes, &mut radiance);
         self.ground_control(normal, bounce, &beta, lanes, &mut radiance, rng);
         // Roulette plays on the weight relative to the bounce's start, as
         // on a camera path's branch.
@@ -59,6 +62,47 @@ impl<'a> Integrator<'a> {
         let x = ground_point(self.medium, normal);
         self.trace((x, bounce, 1, split), beta, lanes, &mut radiance, rng);
         radiance.total
+    }
+
+    /// The ground's control variate at the ground point under unit
+    /// `normal` ([`crate::render::ground_sky`]), where the plan has it.
+    pub(super) fn ground_sky(
+        &self,
+        normal: DVec3,
+        lanes: &SpectralLanes,
+    ) -> Option<GroundSkyAt<'a>> {
+        self.ground_sky?.at(self.medium, normal, lanes)
+    }
+
+    /// Adds the control's exact part for a bounce of weight `weight` (the
+    /// bounce's, albedo included, before its direction's factor):
+    /// weight × ∫ (1/π) L̃ cos dω, whatever direction the bounce then
+    /// takes. The bounce's path must then carry L − L̃
+    /// ([`Self::ground_sky_out`]).
+    pub(super) fn ground_sky_in(
+        at: Option<&GroundSkyAt<'_>>,
+        weight: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Light,
+    ) {
+        if let Some(at) = at {
+            radiance.total += *weight * at.irradiance() * lanes.sun_irradiance / PI;
+        }
+    }
+
+    /// Takes L̃ along `bounce` out of a bounce's path of weight `weight`
+    /// (the direction's factor included): the path going on estimates
+    /// L − L̃.
+    pub(super) fn ground_sky_out(
+        at: Option<&GroundSkyAt<'_>>,
+        bounce: DVec3,
+        weight: &Lanes,
+        lanes: &SpectralLanes,
+        radiance: &mut Light,
+    ) {
+        if let Some(at) = at {
+            radiance.total -= *weight * at.radiance(bounce) * lanes.sun_irradiance;
+        }
     }
 
     /// The sky guide at the ground point under unit `normal`, where the
@@ -108,5 +152,56 @@ impl<'a> Integrator<'a> {
         }
         let pdf = (1.0 - share) * cos / PI + share * at.pdf(bounce);
         Some((bounce, cos / PI / pdf))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::Renderer;
+    use crate::scene::Scene;
+
+    /// Mean and variance of `n` ground-light estimates (sum over lanes)
+    /// under the observer of `preset`, with the ground's control or
+    /// without.
+    fn ground_light_stats(preset: &str, control: bool, n: usize) -> (f64, f64) {
+        let mut scene = Scene::preset(preset).unwrap();
+        scene.render.integrator.ground_control = Some(control);
+        let renderer = Renderer::new(&scene).unwrap();
+        let integrator = renderer.integrator(1);
+        assert_eq!(integrator.ground_sky.is_some(), control, "{preset}");
+        let (lanes, _) = renderer.sample_lanes(0.37);
+        let normal = renderer.observer_m.normalize();
+        let mut rng = Rng::new(7, u64::from(control));
+        let (mut sum, mut sum2) = (0.0, 0.0);
+        for _ in 0..n {
+            let light = integrator.ground_light(normal, &lanes, &mut rng);
+            let v: f64 = light[..lanes.active].iter().sum();
+            sum += v;
+            sum2 += v * v;
+        }
+        let mean = sum / n as f64;
+        (mean, sum2 / n as f64 - mean * mean)
+    }
+
+    #[test]
+    fn the_grounds_control_keeps_its_mean_and_cuts_its_variance() {
+        // The same ground light estimated with and without the model's
+        // skylight as the control: the means agree within their standard
+        // errors; by day the control takes out the direction's share of
+        // the variance (about half of it at 45°, a third at 20°), with the
+        // sun low little (0.91 at 2°).
+        for (preset, most) in [("midday", 0.6), ("afternoon", 0.75), ("sunset", 1.0)] {
+            let n = 40_000;
+            let (plain, plain_var) = ground_light_stats(preset, false, n);
+            let (controlled, controlled_var) = ground_light_stats(preset, true, n);
+            let se = ((plain_var + controlled_var) / n as f64).sqrt();
+            assert!(
+                (plain - controlled).abs() < 4.0 * se,
+                "{preset}: {controlled} with the control against {plain} ± {se}"
+            );
+            let ratio = controlled_var / plain_var;
+            assert!(ratio < most, "{preset}: variance ratio {ratio}");
+        }
     }
 }

@@ -90,6 +90,13 @@
 //! sees a sharp structure that the sampled directions find unevenly; taken
 //! out, it leaves less variance (`BENCHMARKS.md`).
 //!
+//! **The sky model's light on the ground as a control variate**
+//! (`ground_control`, at every sun elevation): a ground bounce adds the
+//! exact cosine integral of the approximate model's light arriving there,
+//! tabulated on a grid of directions ([`super::ground_sky`]), and its path
+//! estimates only L − L̃. By day half a bounce's variance comes from the
+//! choice of its direction, which the model's light follows closely.
+//!
 //! **Multiply scattered light splatted along circles of symmetry**
 //! (`circle_splatting`, with the sun low): the camera's
 //! paths keep only their next-event points (more per ray than without:
@@ -131,6 +138,7 @@ use glam::DVec3;
 use super::columns::FixedStart;
 use super::control::{Frame, Picked, RadianceTable, L_MAX};
 use super::directions::orthonormal_basis;
+use super::ground_sky::{GroundSky, GroundSkyAt};
 use super::guide::{GuideAt, SkyGuide};
 use super::medium::Span;
 use super::medium::{Bounds, Lanes, Medium, SpectralLanes, LANES};
@@ -221,6 +229,8 @@ pub struct Integrator<'a> {
     camera: Option<&'a CameraDensities>,
     guide: Option<&'a SkyGuide>,
     control: Option<&'a RadianceTable>,
+    /// The model's skylight on the ground, for the ground's control.
+    ground_sky: Option<&'a GroundSky>,
     /// Camera rays branch only from the ground: the light scattered more
     /// than once in the air reaches the film through [`super::circles`].
     splatting: bool,
@@ -296,6 +306,7 @@ impl<'a> Integrator<'a> {
             camera: None,
             guide: None,
             control: None,
+            ground_sky: None,
             splatting: false,
             ground_splatting: false,
             aerosol_moments: MomentsOverWavelength::new(&medium.aerosol_phase),
@@ -314,10 +325,11 @@ impl<'a> Integrator<'a> {
         self
     }
 
-    /// Whether single estimates may be negative (with the control variate
-    /// on: its mean is not); otherwise a negative one is a defect.
+    /// Whether single estimates may be negative (with a control variate
+    /// on, the air's or the ground's: its mean is not); otherwise a
+    /// negative one is a defect.
     pub fn signed_estimates(&self) -> bool {
-        self.control.is_some()
+        self.control.is_some() || self.ground_sky.is_some()
     }
 
     /// Camera rays no longer branch from the air (only from the ground):
@@ -339,6 +351,14 @@ impl<'a> Integrator<'a> {
     #[must_use]
     pub fn with_sky_guide(mut self, guide: &'a SkyGuide) -> Self {
         self.guide = Some(guide);
+        self
+    }
+
+    /// Uses `sky` as the control variate of ground bounces (see
+    /// [`crate::plan::IntegratorOptions::ground_control`]).
+    #[must_use]
+    pub fn with_ground_sky(mut self, sky: &'a GroundSky) -> Self {
+        self.ground_sky = Some(sky);
         self
     }
 

@@ -305,9 +305,13 @@ impl<'a> Integrator<'a> {
         {
             return None;
         }
+        let weight = *beta * lanes.ground_albedo;
+        let sky = self.ground_sky(normal, lanes);
+        Self::ground_sky_in(sky.as_ref(), &weight, lanes, radiance);
         let guide = self.bounce_guide(normal);
         let (bounce, reflect) = self.bounce_direction(normal, guide.as_ref(), rng)?;
-        let beta = *beta * lanes.ground_albedo * reflect;
+        let beta = weight * reflect;
+        Self::ground_sky_out(sky.as_ref(), bounce, &beta, lanes, radiance);
         self.ground_control(normal, bounce, &beta, lanes, radiance, rng);
         Some(Next::Vertex((
             ground_point(self.medium, normal),

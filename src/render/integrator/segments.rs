@@ -229,6 +229,7 @@ impl<'a> Integrator<'a> {
                 // Each ground branch bounces on its own (see `Integrator::ground_bounce`).
                 let x = ground_point(self.medium, normal);
                 let guide = self.bounce_guide(normal);
+                let sky = self.ground_sky(normal, lanes);
                 let weight: Lanes = Lanes::from_fn(|j| {
                     through[j] * lanes.ground_albedo[j] * share / (1.0 - p_medium)
                 });
@@ -238,12 +239,14 @@ impl<'a> Integrator<'a> {
                     .zip(&direction_u)
                     .filter(|((_, &f), _)| !f)
                 {
+                    Self::ground_sky_in(sky.as_ref(), &weight, lanes, radiance);
                     let Some((bounce, reflect)) =
                         rng.replaying(u, |rng| self.bounce_direction(normal, guide.as_ref(), rng))
                     else {
                         continue;
                     };
                     let weight = weight * reflect;
+                    Self::ground_sky_out(sky.as_ref(), bounce, &weight, lanes, radiance);
                     self.ground_control(normal, bounce, &weight, lanes, radiance, rng);
                     *slot = Some((x, bounce, weight));
                 }

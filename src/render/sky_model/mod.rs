@@ -131,9 +131,21 @@ impl ModelField {
     /// each of the model's wavelengths ([`Self::node_nm`]); the sun's disc
     /// left out.
     pub fn radiance(&self, medium: &Medium, x: DVec3, dir: DVec3) -> [f64; NODES] {
+        self.radiance_marched(medium, x, dir, VIEW_STEPS)
+    }
+
+    /// [`Self::radiance`] by a march of `steps` steps (more steps, less
+    /// error, more time; the observer's view takes 48).
+    pub fn radiance_marched(
+        &self,
+        medium: &Medium,
+        x: DVec3,
+        dir: DVec3,
+        steps: usize,
+    ) -> [f64; NODES] {
         let optics = self.optics(medium);
         let tables = &self.tables;
-        let g = optics.march(x, dir, VIEW_STEPS, Sources::all(&tables.ms, &tables.sky));
+        let g = optics.march(x, dir, steps, Sources::all(&tables.ms, &tables.sky));
         let (pr, pa) = tables.phases.at(dir.dot(self.sun_direction));
         std::array::from_fn(|n| pr[n] * g.rayleigh[n] + pa[n] * g.aerosol[n] + g.isotropic[n])
     }
