@@ -35,6 +35,7 @@ use std::sync::{Arc, Mutex, OnceLock, PoisonError};
 
 use glam::DVec3;
 
+use super::directions::LocalAxes;
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
 use super::sky_model::{ModelField, ModelTables, MODEL_NODES};
 
@@ -71,7 +72,6 @@ struct Grid {
 struct Grids {
     /// The model lit from the canonical sun, +z.
     field: ModelField,
-    tables: Arc<ModelTables>,
     by_node: Vec<OnceLock<Grid>>,
 }
 
@@ -89,9 +89,8 @@ pub struct GroundSkyAt<'a> {
     /// the four values it blends: (grid, node) = (0, m), (0, m + 1),
     /// (1, m), (1, m + 1).
     blend: [(usize, [f32; 4]); LANES],
-    up: DVec3,
-    toward_sun: DVec3,
-    across: DVec3,
+    /// The point's zenith and horizontal axes about the sun's azimuth.
+    axes: LocalAxes,
 }
 
 impl GroundSky {
@@ -104,11 +103,10 @@ impl GroundSky {
         static LAST: Mutex<Option<Arc<Grids>>> = Mutex::new(None);
         let mut last = LAST.lock().unwrap_or_else(PoisonError::into_inner);
         let grids = match last.as_ref() {
-            Some(grids) if Arc::ptr_eq(&grids.tables, &tables) => Arc::clone(grids),
+            Some(grids) if Arc::ptr_eq(grids.field.tables(), &tables) => Arc::clone(grids),
             _ => {
                 let grids = Arc::new(Grids {
-                    field: ModelField::from_tables(Arc::clone(&tables), DVec3::Z),
-                    tables,
+                    field: ModelField::from_tables(tables, DVec3::Z),
                     by_node: (0..SUN_NODES).map(|_| OnceLock::new()).collect(),
                 });
                 *last = Some(Arc::clone(&grids));
@@ -139,25 +137,18 @@ impl GroundSky {
         let w = (u - k as f64) as f32;
         let grids = &self.grids;
         let grid = |k: usize| grids.by_node[k].get_or_init(|| grids.grid(medium, k));
-        let last = MODEL_NODES - 1;
-        let step_nm = ModelField::node_nm(1) - ModelField::node_nm(0);
         let blend = std::array::from_fn(|j| {
-            let u = ((lanes.wavelengths_nm[j] - ModelField::node_nm(0)) / step_nm)
-                .clamp(0.0, last as f64);
-            let m = (u as usize).min(last - 1);
-            let f = (u - m as f64) as f32;
+            let (m, f) = ModelField::node_blend(lanes.wavelengths_nm[j]);
+            let f = f as f32;
             (
                 m,
                 [(1.0 - w) * (1.0 - f), (1.0 - w) * f, w * (1.0 - f), w * f],
             )
         });
-        let (up, toward_sun, across) = frame(normal, self.sun_direction);
         Some(GroundSkyAt {
             grids: [grid(k), grid(k + 1)],
             blend,
-            up,
-            toward_sun,
-            across,
+            axes: LocalAxes::new(normal, self.sun_direction),
         })
     }
 }
@@ -168,23 +159,21 @@ impl Grids {
     /// zenith cosine.
     fn grid(&self, medium: &Medium, k: usize) -> Grid {
         let cos_sun = SUN_COSINE_MIN + k as f64 * sun_step();
-        let sun = DVec3::Z;
         let normal = DVec3::new((1.0 - cos_sun * cos_sun).max(0.0).sqrt(), 0.0, cos_sun);
         let x = normal * medium.planet_radius_m;
-        let (up, toward_sun, across) = frame(normal, sun);
+        let axes = LocalAxes::new(normal, DVec3::Z);
         let d_mu = 1.0 / ZENITH_CELLS as f64;
         let d_phi = PI / AZIMUTH_CELLS as f64;
         let mut radiance = Vec::with_capacity(ZENITH_CELLS * AZIMUTH_CELLS);
         let mut irradiance = [0.0; MODEL_NODES];
         for i in 0..ZENITH_CELLS {
             let mu = (i as f64 + 0.5) * d_mu;
-            let sin_theta = (1.0 - mu * mu).sqrt();
             // ∫ μ dμ dφ over the cell, twice for the mirror half.
             let (mu0, mu1) = (i as f64 * d_mu, (i + 1) as f64 * d_mu);
             let weight = (mu1 * mu1 - mu0 * mu0) * d_phi;
             for l in 0..AZIMUTH_CELLS {
                 let phi = (l as f64 + 0.5) * d_phi;
-                let dir = up * mu + (toward_sun * phi.cos() + across * phi.sin()) * sin_theta;
+                let dir = axes.direction(mu, phi);
                 let model = self.field.radiance_marched(medium, x, dir, MARCH_STEPS);
                 let cell: [f32; MODEL_NODES] = std::array::from_fn(|n| model[n] as f32);
                 for (e, &l) in irradiance.iter_mut().zip(&cell) {
@@ -219,11 +208,14 @@ impl GroundSkyAt<'_> {
     /// L̃ along unit `dir` per lane, per unit solar irradiance (0 below the
     /// horizon).
     pub fn radiance(&self, dir: DVec3) -> Lanes {
-        let mu = dir.dot(self.up);
+        let mu = dir.dot(self.axes.up);
         if mu <= 0.0 {
             return Lanes::splat(0.0);
         }
-        let phi = dir.dot(self.across).atan2(dir.dot(self.toward_sun)).abs();
+        let phi = dir
+            .dot(self.axes.across_sun)
+            .atan2(dir.dot(self.axes.toward_sun))
+            .abs();
         let i = ((mu * ZENITH_CELLS as f64) as usize).min(ZENITH_CELLS - 1);
         let l = ((phi * (AZIMUTH_CELLS as f64 / PI)) as usize).min(AZIMUTH_CELLS - 1);
         let cell = i * AZIMUTH_CELLS + l;
@@ -245,22 +237,11 @@ fn sun_step() -> f64 {
     (1.0 - SUN_COSINE_MIN) / (SUN_NODES - 1) as f64
 }
 
-/// Zenith, the horizontal toward the sun and across at a point under unit
-/// `normal` (any horizontal where the sun stands at the zenith).
-fn frame(normal: DVec3, sun: DVec3) -> (DVec3, DVec3, DVec3) {
-    let horizontal = sun - normal * sun.dot(normal);
-    let toward_sun = if horizontal.length_squared() > 1e-18 {
-        horizontal.normalize()
-    } else {
-        normal.any_orthonormal_vector()
-    };
-    (normal, toward_sun, normal.cross(toward_sun))
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
+    use crate::render::integrator::cosine_sample_hemisphere;
     use crate::render::lanes::{LaneTable, SolarSource};
     use crate::rng::Rng;
 
@@ -288,11 +269,7 @@ mod tests {
             let n = 200_000_u32;
             let (mut sum, mut sum2) = (Lanes::splat(0.0), Lanes::splat(0.0));
             for _ in 0..n {
-                let (u1, u2) = (rng.uniform(), rng.uniform());
-                let (r, phi) = (u1.sqrt(), 2.0 * PI * u2);
-                let t = normal.any_orthonormal_vector();
-                let b = normal.cross(t);
-                let dir = normal * (1.0 - u1).sqrt() + (t * phi.cos() + b * phi.sin()) * r;
+                let dir = cosine_sample_hemisphere(normal, &mut rng);
                 let v = at.radiance(dir) * PI;
                 sum += v;
                 sum2 += v * v;

@@ -20,7 +20,7 @@ use super::guide::SkyGuide;
 use super::integrator::Integrator;
 use super::lanes::LaneTable;
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
-use super::sky_model::{ModelField, ModelTables, MODEL_NODES};
+use super::sky_model::{ModelField, ModelTables};
 use super::sunlight::CameraDensities;
 use crate::plan::{ControlSource, TechniquePlan};
 use crate::rng::Rng;
@@ -274,14 +274,8 @@ impl CellProjection for ModelRadiance {
         let (nt, np) = CONTROL_DIRECTIONS;
         let weight = 4.0 * PI / (nt * np) as f64;
         // Each table node as a blend of two model nodes.
-        let blend: [(usize, f64); NODES] = std::array::from_fn(|n| {
-            let nm = table.node_nm(n);
-            let last = MODEL_NODES - 1;
-            let step = ModelField::node_nm(1) - ModelField::node_nm(0);
-            let u = ((nm - ModelField::node_nm(0)) / step).clamp(0.0, last as f64);
-            let m = (u as usize).min(last - 1);
-            (m, u - m as f64)
-        });
+        let blend: [(usize, f64); NODES] =
+            std::array::from_fn(|n| ModelField::node_blend(table.node_nm(n)));
         let mut coefficients = [[0.0; COEFFICIENTS]; NODES];
         for it in 0..nt {
             for ip in 0..np {

@@ -661,7 +661,7 @@ fn ground_point(medium: &Medium, normal: DVec3) -> DVec3 {
 }
 
 /// Cosine-weighted direction about `normal` (Malley's method).
-fn cosine_sample_hemisphere(normal: DVec3, rng: &mut Rng) -> DVec3 {
+pub(crate) fn cosine_sample_hemisphere(normal: DVec3, rng: &mut Rng) -> DVec3 {
     let r = rng.uniform().sqrt();
     let (sin_phi, cos_phi) = sin_cos_turns(rng.uniform());
     let z = (1.0 - r * r).max(0.0).sqrt();

@@ -154,6 +154,22 @@ impl ModelField {
     pub fn node_nm(k: usize) -> f64 {
         node_wavelength(k)
     }
+
+    /// The two model nodes about `wavelength_nm`, as the lower one's index
+    /// m and the weight f of node m + 1 (linear interpolation; clamped to
+    /// the nodes' range).
+    pub fn node_blend(wavelength_nm: f64) -> (usize, f64) {
+        let last = NODES - 1;
+        let step_nm = node_wavelength(1) - node_wavelength(0);
+        let u = ((wavelength_nm - node_wavelength(0)) / step_nm).clamp(0.0, last as f64);
+        let m = (u as usize).min(last - 1);
+        (m, u - m as f64)
+    }
+
+    /// The atmosphere's tables the field reads.
+    pub fn tables(&self) -> &Arc<ModelTables> {
+        &self.tables
+    }
 }
 
 /// Wavelengths at which the model is computed ([`ModelField::node_nm`]).
