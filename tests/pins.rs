@@ -70,8 +70,8 @@ fn probe_hash(preset: &str) -> u64 {
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
     ("midday", 0x4b51ef7e7c98d4e5, 0x4657fb984c6cdf7d),
-    ("sunset", 0xfff53f7b348b4a91, 0x13cf60967bf0eb01),
-    ("twilight", 0xc7035ee0e0a8c5cd, 0xee3b0a114cd198ac),
+    ("sunset", 0xfff53f7b348b4a91, 0x6ddb519aecb46900),
+    ("twilight", 0xc7035ee0e0a8c5cd, 0xeed94b1cb6349648),
     ("space", 0x3d4744fd8fc585c2, 0xa09d945a1cd8d6e5),
 ];
 

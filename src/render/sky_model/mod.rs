@@ -66,11 +66,12 @@ use super::medium::{Lanes, Medium, LANES};
 use crate::output::RgbImage;
 use crate::spectrum::{xyz_to_rec709, ColourMatching, K_M};
 
+mod geometric;
 mod optics;
 mod orders;
 mod stored;
 
-use optics::{node_wavelength, Optics, Sources, Spectrum, NODES};
+use optics::{node_wavelength, Gathered, Optics, Sources, Spectrum, NODES};
 pub use orders::{forget_shared_tables, keep_shared_tables_on_disk, ModelTables};
 
 /// Steps of a view ray's march (at 32, the midday sky read 1.3 % off the
@@ -201,15 +202,26 @@ impl SkyModel {
         let frame = [zenith, x, zenith.cross(x)];
         let r = observer_m.length();
         let rows = Rows::new(medium.planet_radius_m, medium.top_radius_m, r);
-        let view = (0..VIEW_ROWS * VIEW_COLUMNS)
+        // A row's directions share their elevation: one fan of marches.
+        let view = (0..VIEW_ROWS)
             .into_par_iter()
-            .map(|texel| {
-                let (row, column) = (texel / VIEW_COLUMNS, texel % VIEW_COLUMNS);
+            .flat_map_iter(|row| {
                 let elevation = rows.elevation(row as f64);
-                let azimuth = PI * column as f64 / (VIEW_COLUMNS - 1) as f64;
-                let dir = direction(&frame, elevation, azimuth);
-                let g = optics.march(observer_m, dir, VIEW_STEPS, Sources::all(ms, sky));
-                [g.rayleigh, g.aerosol, g.isotropic]
+                let dirs: [DVec3; VIEW_COLUMNS] = std::array::from_fn(|column| {
+                    let azimuth = PI * column as f64 / (VIEW_COLUMNS - 1) as f64;
+                    direction(&frame, elevation, azimuth)
+                });
+                let mut gathered: [Gathered; VIEW_COLUMNS] = Default::default();
+                optics.march_fan(
+                    observer_m,
+                    &dirs,
+                    VIEW_STEPS,
+                    Sources::all(ms, sky),
+                    &mut gathered,
+                );
+                gathered
+                    .into_iter()
+                    .map(|g| [g.rayleigh, g.aerosol, g.isotropic])
             })
             .collect();
         Self {
@@ -496,6 +508,58 @@ mod tests {
             // apart at the horizon: a few per cent where the light changes
             // fastest.
             assert!(worst < 0.05, "{name}: table off its march by {worst}");
+        }
+    }
+
+    /// A row's fan of marches gives what each direction's own march does
+    /// (the view table's rows are marched as fans), from the ground at
+    /// twilight and from orbit, above and below the horizon.
+    #[test]
+    fn a_fan_of_marches_matches_its_single_marches() {
+        for name in ["twilight", "space"] {
+            let renderer = Renderer::new(&Scene::preset(name).unwrap()).unwrap();
+            let (medium, sun) = (&renderer.medium, renderer.sun_direction);
+            let tables = ModelTables::shared(medium, &renderer.lane_table);
+            let field = ModelField::from_tables(Arc::clone(&tables), sun);
+            let optics = field.optics(medium);
+            let model = SkyModel::from_tables(
+                Arc::clone(&tables),
+                medium,
+                &renderer.lane_table,
+                renderer.cmf,
+                sun,
+                renderer.observer_m,
+            );
+            for elevation_deg in [-60.0_f64, -21.0, -1.0, 0.5, 10.0, 80.0] {
+                let dirs: Vec<DVec3> = (0..7)
+                    .map(|k| {
+                        let azimuth = PI * f64::from(k) / 6.0;
+                        direction(&model.frame, elevation_deg.to_radians(), azimuth)
+                    })
+                    .collect();
+                let sources = || Sources::all(&tables.ms, &tables.sky);
+                let mut fan: Vec<Gathered> = dirs.iter().map(|_| Gathered::default()).collect();
+                optics.march_fan(renderer.observer_m, &dirs, VIEW_STEPS, sources(), &mut fan);
+                for (dir, g) in dirs.iter().zip(&fan) {
+                    let one = optics.march(renderer.observer_m, *dir, VIEW_STEPS, sources());
+                    let pairs = [
+                        (one.rayleigh, g.rayleigh),
+                        (one.aerosol, g.aerosol),
+                        (one.isotropic, g.isotropic),
+                        (one.scattering, g.scattering),
+                    ];
+                    for (a, b) in pairs {
+                        for n in 0..NODES {
+                            assert!(
+                                (a[n] - b[n]).abs() <= 1e-9 * a[n].abs().max(1e-30),
+                                "{name} at {elevation_deg}°: {} against {}",
+                                b[n],
+                                a[n]
+                            );
+                        }
+                    }
+                }
+            }
         }
     }
 }

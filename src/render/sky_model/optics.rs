@@ -6,6 +6,7 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
+use super::geometric::geometric_spectrum;
 use crate::physics::rayleigh;
 use crate::render::medium::{Medium, SpectralLanes, LANES};
 
@@ -102,69 +103,112 @@ impl Optics<'_> {
         steps: usize,
         sources: Sources<'_>,
     ) -> Gathered {
-        let mut out = Gathered::default();
-        let Some(span) = self.medium.span(origin, dir) else {
-            return out;
+        let mut out = [Gathered::default()];
+        self.march_fan(origin, &[dir], steps, sources, &mut out);
+        let [g] = out;
+        g
+    }
+
+    /// [`Self::march`] along each of `dirs` into `out`, the directions all
+    /// at one angle to `origin`'s zenith (a row of the observer's view
+    /// table). Over a spherical planet such rays pass through the same
+    /// altitudes at the same distances, so their steps, the air's
+    /// coefficients and its transmittance along them are computed once;
+    /// only the sunlight and the multiple scattering, which depend on the
+    /// angle to the sun, are computed per direction.
+    pub(super) fn march_fan(
+        &self,
+        origin: DVec3,
+        dirs: &[DVec3],
+        steps: usize,
+        sources: Sources<'_>,
+        out: &mut [Gathered],
+    ) {
+        debug_assert_eq!(dirs.len(), out.len());
+        let Some(&first) = dirs.first() else {
+            return;
         };
-        let nu = dir.dot(self.sun_direction);
+        debug_assert!(dirs
+            .iter()
+            .all(|d| (d.dot(origin) - first.dot(origin)).abs() <= 1e-9 * origin.length().max(1.0)));
+        let Some(span) = self.medium.span(origin, first) else {
+            return;
+        };
+        let nus: Vec<f64> = dirs.iter().map(|d| d.dot(self.sun_direction)).collect();
         let mut transmittance = [1.0; NODES];
         let mut t0 = span.t_enter;
-        for t1 in step_ends(span.t_enter, span.t_exit, -origin.dot(dir), steps) {
+        for t1 in step_ends(span.t_enter, span.t_exit, -origin.dot(first), steps) {
             let dt = t1 - t0;
-            let x = origin + dir * (0.5 * (t0 + t1));
-            let r = x.length();
-            let sun = if sources.sunlight {
-                self.sun_transmittance(x)
-            } else {
-                [0.0; NODES]
-            };
-            let psi = sources
-                .ms
-                .map(|m| m.at(r, x.dot(self.sun_direction) / r, nu, x.dot(dir) / r));
+            let tm = 0.5 * (t0 + t1);
+            let x0 = origin + first * tm;
+            let r = x0.length();
+            let mu_v = x0.dot(first) / r;
+            // Per wavelength: the step's weight ∫ T dt (σ_t constant over
+            // the step: T₀ (1 − e^{−σΔt})/σ) and its coefficients.
+            let mut weight = [0.0; NODES];
+            let mut rayleigh = [0.0; NODES];
+            let mut aerosol = [0.0; NODES];
+            let mut scattering = [0.0; NODES];
             for (g, lanes) in self.groups.iter().enumerate() {
                 let c = self.medium.coefficients(r, lanes);
                 for j in 0..LANES {
                     let k = g * LANES + j;
                     let extinction = c.extinction(j);
-                    // ∫ over the step of T(t) with σ_t constant: T₀ (1 − e^{−σΔt})/σ.
                     let step_t = (-extinction * dt).exp();
-                    let weight = if extinction > 0.0 {
+                    weight[k] = if extinction > 0.0 {
                         transmittance[k] * (1.0 - step_t) / extinction
                     } else {
                         transmittance[k] * dt
                     };
-                    out.rayleigh[k] += weight * c.rayleigh[j] * sun[k];
-                    out.aerosol[k] += weight * c.aerosol_scattering[j] * sun[k];
-                    out.scattering[k] += weight * c.scattering(j);
-                    if let Some([psi_r, psi_a]) = &psi {
-                        out.isotropic[k] += weight
-                            * (c.rayleigh[j] * psi_r[k] + c.aerosol_scattering[j] * psi_a[k]);
-                    }
+                    rayleigh[k] = c.rayleigh[j];
+                    aerosol[k] = c.aerosol_scattering[j];
+                    scattering[k] = c.scattering(j);
                     transmittance[k] *= step_t;
+                }
+            }
+            for ((dir, &nu), o) in dirs.iter().zip(&nus).zip(out.iter_mut()) {
+                let x = origin + *dir * tm;
+                let sun = if sources.sunlight {
+                    self.sun_transmittance(x)
+                } else {
+                    [0.0; NODES]
+                };
+                let psi = sources
+                    .ms
+                    .map(|m| m.at(r, x.dot(self.sun_direction) / r, nu, mu_v));
+                for k in 0..NODES {
+                    let w = weight[k];
+                    o.rayleigh[k] += w * rayleigh[k] * sun[k];
+                    o.aerosol[k] += w * aerosol[k] * sun[k];
+                    o.scattering[k] += w * scattering[k];
+                    if let Some([psi_r, psi_a]) = &psi {
+                        o.isotropic[k] += w * (rayleigh[k] * psi_r[k] + aerosol[k] * psi_a[k]);
+                    }
                 }
             }
             t0 = t1;
         }
         if span.hits_ground {
-            let g = origin + dir * span.t_exit;
-            let (mu_sun, sun) = if sources.ground_sun {
-                let mu = (g.dot(self.sun_direction) / g.length()).max(0.0);
-                (mu, self.sun_transmittance(g))
-            } else {
-                (0.0, [0.0; NODES])
-            };
-            let irradiance = sources
-                .ground_sky
-                .map(|s| s.at(g.dot(self.sun_direction) / g.length()));
-            for (group, lanes) in self.groups.iter().enumerate() {
-                for j in 0..LANES {
-                    let k = group * LANES + j;
-                    let e = mu_sun * sun[k] + irradiance.map_or(0.0, |e| e[k]);
-                    out.isotropic[k] += transmittance[k] * lanes.ground_albedo[j] / PI * e;
+            for (dir, o) in dirs.iter().zip(out.iter_mut()) {
+                let g = origin + *dir * span.t_exit;
+                let (mu_sun, sun) = if sources.ground_sun {
+                    let mu = (g.dot(self.sun_direction) / g.length()).max(0.0);
+                    (mu, self.sun_transmittance(g))
+                } else {
+                    (0.0, [0.0; NODES])
+                };
+                let irradiance = sources
+                    .ground_sky
+                    .map(|s| s.at(g.dot(self.sun_direction) / g.length()));
+                for (group, lanes) in self.groups.iter().enumerate() {
+                    for j in 0..LANES {
+                        let k = group * LANES + j;
+                        let e = mu_sun * sun[k] + irradiance.map_or(0.0, |e| e[k]);
+                        o.isotropic[k] += transmittance[k] * lanes.ground_albedo[j] / PI * e;
+                    }
                 }
             }
         }
-        out
     }
 
     /// These optics with the sun at solar-zenith cosine `mu_s` above a
@@ -477,23 +521,13 @@ impl MsTable {
             out
         };
         let (low, high) = (slice(k), slice(k + 1));
-        [0, 1].map(|x| std::array::from_fn(|n| geometric(low[x][n], high[x][n], fk) * factor[x][n]))
-    }
-}
-
-/// Interpolation between `a` and `b` at fraction `f`: geometric where
-/// both are positive and differ by more than a quarter, else linear. The
-/// light past the first scattering falls off about exponentially with the
-/// sun's depression at twilight (the shadow rising through the air), and
-/// with table nodes a degree or two apart the linear mean there is up to
-/// 30 % too bright; where neighbours differ by less than a quarter the
-/// two means differ by less than 0.7 % (and the power is not paid for).
-pub(super) fn geometric(a: f64, b: f64, f: f64) -> f64 {
-    let linear = a + f * (b - a);
-    if a > 0.0 && b > 0.0 && (b > 1.25 * a || a > 1.25 * b) {
-        a * (b / a).powf(f)
-    } else {
-        linear
+        [0, 1].map(|x| {
+            let mut j = geometric_spectrum(&low[x], &high[x], fk);
+            for (v, f) in j.iter_mut().zip(factor[x]) {
+                *v *= f;
+            }
+            j
+        })
     }
 }
 
@@ -509,7 +543,7 @@ impl SkyIrradiance {
         let x = zenith_index(mu_s).clamp(0.0, (MS_ZENITHS - 1) as f64);
         let k = (x as usize).min(MS_ZENITHS - 2);
         let (low, high) = (&self.values[k], &self.values[k + 1]);
-        std::array::from_fn(|n| geometric(low[n], high[n], x - k as f64))
+        geometric_spectrum(low, high, x - k as f64)
     }
 }
 
