@@ -229,6 +229,27 @@ struct FirstFrameMs {
     disk: f64,
 }
 
+/// The correlation of the noise between neighbours (rows, columns) or
+/// splat partners (circles) of `run` that is largest in magnitude, with
+/// its sign: anti-correlated noise is structured too. NaN where none was
+/// measured.
+fn largest_correlation(run: &NoiseRun) -> f64 {
+    [
+        run.row_correlation,
+        run.column_correlation,
+        run.circle_correlation,
+    ]
+    .into_iter()
+    .filter(|c| c.is_finite())
+    .fold(f64::NAN, |a, c| {
+        if a.is_nan() || c.abs() > a.abs() {
+            c
+        } else {
+            a
+        }
+    })
+}
+
 fn median(values: &mut [f64]) -> f64 {
     if values.is_empty() {
         return f64::NAN;
@@ -330,14 +351,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             noise_whole_at_budget: run.noise_whole,
             time_to_1pct_4k_s: time_to_noise(run.noise_whole, run.seconds, 0.01) * 4096.0 * 2048.0
                 / f64::from(scene.render.width * scene.render.height),
-            noise_neighbour_correlation: [
-                run.row_correlation,
-                run.column_correlation,
-                run.circle_correlation,
-            ]
-            .into_iter()
-            .filter(|c| c.is_finite())
-            .fold(f64::NAN, f64::max),
+            noise_neighbour_correlation: largest_correlation(&run),
             first_frame_error: run.model_error,
             first_pass_error: run.first_pass_error,
             preview_error_2s: run.preview_error_2s,
@@ -408,6 +422,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
                     ground_noise_ratio: equal_time(v.noise_ground, run.noise_ground),
                     noise_whole_at_budget: v.noise_whole,
                     whole_noise_ratio: equal_time(v.noise_whole, run.noise_whole),
+                    noise_neighbour_correlation: largest_correlation(&v),
                     paths_per_s: v.paths_per_s(),
                     mean_ratio: v.mean_luminance_cd_m2 / run.mean_luminance_cd_m2,
                     cpu_share: v.cpu_share,
@@ -443,7 +458,7 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         ),
         "time_to_2pct_s / time_to_1pct_s: extrapolated from noise_at_budget and the time actually spent, assuming noise ∝ 1/sqrt(time)".into(),
         "noise_ground_at_budget / noise_whole_at_budget: the same noise over the pixels whose centre's ray meets the ground, and over every pixel with a ray (lit, above the air), sun cone excluded; time_to_1pct_4k_s: time to 1 % over the whole image of a 4096x2048 render, extrapolated (noise ∝ 1/sqrt(time), time ∝ pixels)".into(),
-        "noise_neighbour_correlation: the largest correlation of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of the preview's first frame, the approximate sky model, minus the reference over the whole image (the mean of A and B, or with --reference-budget of two further renders of that time each, seeds + 3 and + 4: details.run.reference_noise), relative to the mean, the reference's own noise removed in quadrature; first_pass_error: the same for one Monte Carlo pass (seed + 2); preview_error_2s: the same for what the preview shows 2 s after a change (the last image render::preview completed by then: the model corrected by quarter-size passes, then the full passes blended with it)".into(),
+        "noise_neighbour_correlation (scenes and ablation rows): the correlation largest in magnitude, with its sign, of u = (A-B)/(A+B) between horizontal neighbours, vertical neighbours, and pixels at the same angle from the sun (one circle of the splats), mirror partners left out; first_frame_error: RMS of the preview's first frame, the approximate sky model, minus the reference over the whole image (the mean of A and B, or with --reference-budget of two further renders of that time each, seeds + 3 and + 4: details.run.reference_noise), relative to the mean, the reference's own noise removed in quadrature; first_pass_error: the same for one Monte Carlo pass (seed + 2); preview_error_2s: the same for what the preview shows 2 s after a change (the last image render::preview completed by then: the model corrected by quarter-size passes, then the full passes blended with it)".into(),
         format!(
             "scenes: presets (or scene files) as {BENCH_WIDTH}x{BENCH_HEIGHT} equirect maps at the preset's sun and observer; preview = the app's default preview (midday, 320x160 equirect)"
         ),

@@ -39,7 +39,8 @@ pub struct SceneResult {
     /// Time to 1 % noise over the whole image of a 4096×2048 render,
     /// extrapolated: noise ∝ 1/√time, time ∝ pixels.
     pub time_to_1pct_4k_s: f64,
-    /// The largest of the neighbour and circle correlations of the noise.
+    /// The neighbour or circle correlation of the noise largest in
+    /// magnitude, with its sign.
     pub noise_neighbour_correlation: f64,
     /// RMS error of the preview's first frame, the sky model, against the
     /// reference (see [`NoiseRun::model_error`]).
@@ -123,6 +124,11 @@ pub struct AblationRow {
     pub noise_whole_at_budget: f64,
     /// [`Self::noise_ratio`] over the whole image.
     pub whole_noise_ratio: f64,
+    /// The variant's structure: its noise's correlation between
+    /// neighbours or splat partners largest in magnitude (as the scene's
+    /// `noise_neighbour_correlation`), so that a technique that trades
+    /// structure for variance shows both.
+    pub noise_neighbour_correlation: f64,
     /// Camera paths per second of the variant.
     pub paths_per_s: f64,
     /// Mean sky luminance of the variant over the full renderer's (≈ 1: unbiased).
@@ -346,11 +352,11 @@ pub fn format_report(report: &Report) -> String {
         );
         let _ = writeln!(
             out,
-            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | ground noise | ground ratio | whole-image noise | whole-image ratio | M paths/s | CPU share | mean ratio |"
+            "| scene | switched off | noise at budget | render s | noise ratio | time ratio | ground noise | ground ratio | whole-image noise | whole-image ratio | correlation | M paths/s | CPU share | mean ratio |"
         );
         let _ = writeln!(
             out,
-            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+            "|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
         );
         for a in &report.ablation {
             let overran = if a.seconds > 1.1 * report.budget_s {
@@ -360,7 +366,7 @@ pub fn format_report(report: &Report) -> String {
             };
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {:.1}{overran} | {} | {} | {} | {} | {} | {} | {:.3} | {} | {} |",
+                "| {} | {} | {} | {:.1}{overran} | {} | {} | {} | {} | {} | {} | {} | {:.3} | {} | {} |",
                 a.scene,
                 a.variant,
                 pct(a.noise_at_budget),
@@ -371,6 +377,7 @@ pub fn format_report(report: &Report) -> String {
                 num(a.ground_noise_ratio, 2),
                 pct(a.noise_whole_at_budget),
                 num(a.whole_noise_ratio, 2),
+                num(a.noise_neighbour_correlation, 3),
                 a.paths_per_s / 1e6,
                 pct(a.cpu_share),
                 num(a.mean_ratio, 3)
