@@ -49,7 +49,7 @@ pub use noise::{
     measure_noise, measure_preview, process_cpu_seconds, relative_noise, sky_mask, time_to_noise,
     NoiseRun, SkyMask,
 };
-pub use report::{format_report, AblationRow, Report, SceneDetail, SceneResult};
+pub use report::{format_report, AblationRow, ExportNoise, Report, SceneDetail, SceneResult};
 
 /// Options of `skyrender bench`.
 #[derive(clap::Args, Debug, Clone, Default)]
@@ -86,6 +86,12 @@ pub struct BenchArgs {
     /// Also measure the peak memory of an 8192×4096 equirect export.
     #[arg(long)]
     pub memory: bool,
+    /// Also render the sunset at 1024×512, two renders of SECONDS/2 each,
+    /// and extrapolate the time to 1 % over the whole image of a
+    /// 4096×2048 export from that measured noise (issue 33's measure of
+    /// its 4K target) as well as from the 256×128 scene's.
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
+    pub export_noise: Option<f64>,
     /// Time for each of two further renders per scene whose mean is the
     /// reference the first frame, the first pass, the preview at 2 s and
     /// the fast mode are measured against (default: A and B themselves,
@@ -447,6 +453,21 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
     } else {
         None
     };
+    let export_noise = match args.export_noise {
+        Some(seconds) => {
+            let sunset_256 = results
+                .iter()
+                .find(|r| r.scene == EXPORT_NOISE_SCENE)
+                .map(|r| r.time_to_1pct_4k_s);
+            let size = if args.quick {
+                QUICK_EXPORT_NOISE_SIZE
+            } else {
+                EXPORT_NOISE_SIZE
+            };
+            Some(pool.install(|| measure_export_noise(seconds, size, seed, sunset_256))?)
+        }
+        None => None,
+    };
     let notes = vec![
         format!(
             "noise: sqrt(mean((A-B)^2)/4) / mean((A+B)/2) on luminance Y, A and B independent renders (seeds {:#x}, {:#x}) of budget/2 each, whole passes only (stopping at the pass boundary nearest to budget/2; the time actually spent is in details.run.seconds)",
@@ -483,7 +504,54 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         fast: fast_rows,
         scaling,
         memory,
+        export_noise,
         notes,
+    })
+}
+
+/// The scene of `--export-noise`: the issue's 4K target is a sunset.
+const EXPORT_NOISE_SCENE: &str = "sunset";
+/// The size `--export-noise` renders at (the issue's "measured 1024×512").
+const EXPORT_NOISE_SIZE: (u32, u32) = (1024, 512);
+/// ... and with `--quick` (a smoke run of the measurement).
+const QUICK_EXPORT_NOISE_SIZE: (u32, u32) = (128, 64);
+/// The export its time is extrapolated to.
+const EXPORT_SIZE: (u32, u32) = (4096, 2048);
+
+/// `--export-noise`: the sunset at `size` ([`EXPORT_NOISE_SIZE`]), two renders of
+/// `seconds`/2 each, its whole-image noise and the time to 1 % at
+/// [`EXPORT_SIZE`] extrapolated from it (noise ∝ 1/√time, time ∝
+/// pixels), beside the same from the 256×128 scene (`from_bench_s`,
+/// where the run had it).
+fn measure_export_noise(
+    seconds: f64,
+    size: (u32, u32),
+    seed: u64,
+    from_bench_s: Option<f64>,
+) -> Result<ExportNoise, String> {
+    if !(seconds.is_finite() && seconds > 0.0) {
+        return Err(format!(
+            "bench: --export-noise must be a positive number of seconds, not {seconds}"
+        ));
+    }
+    let mut scene = bench_scene(EXPORT_NOISE_SCENE)?;
+    (scene.render.width, scene.render.height) = size;
+    let (w, h) = size;
+    eprintln!("bench: {EXPORT_NOISE_SCENE} at {w}×{h}, {seconds} s");
+    let run = measure_noise(&scene, seconds, seed)?;
+    let scale = f64::from(EXPORT_SIZE.0 * EXPORT_SIZE.1) / f64::from(w * h);
+    Ok(ExportNoise {
+        scene: EXPORT_NOISE_SCENE.into(),
+        width: w,
+        height: h,
+        seconds: run.seconds,
+        passes: run.passes,
+        noise_whole: run.noise_whole,
+        noise_sky: run.noise,
+        noise_ground: run.noise_ground,
+        time_to_1pct_4k_s: time_to_noise(run.noise_whole, run.seconds, 0.01) * scale,
+        time_to_1pct_4k_s_from_bench: from_bench_s,
+        cpu_share: run.cpu_share,
     })
 }
 
@@ -789,10 +857,26 @@ mod tests {
             ablation: true,
             scaling: true,
             reference_budget: Some(0.8),
+            export_noise: Some(0.4),
             ..BenchArgs::default()
         };
         let report = bench(&args).unwrap();
         let json = serde_json::to_value(&report).unwrap();
+        // The export measurement: the sunset at the smoke run's size, its
+        // extrapolation 4096×2048 / (128×64) = 1024 times its own.
+        let export = &json["export_noise"];
+        assert_eq!(
+            (export["width"].as_u64(), export["height"].as_u64()),
+            (Some(128), Some(64))
+        );
+        let e = report.export_noise.as_ref().unwrap();
+        assert!(e.noise_whole > 0.0 && e.noise_whole.is_finite(), "{e:?}");
+        let own = e.seconds * (e.noise_whole / 0.01).powi(2);
+        assert!((e.time_to_1pct_4k_s / own - 1024.0).abs() < 1e-6, "{e:?}");
+        assert!(
+            e.time_to_1pct_4k_s_from_bench.is_none(),
+            "no sunset row in this run"
+        );
         let scenes = json["scenes"].as_array().unwrap();
         assert_eq!(scenes.len(), 1);
         for s in scenes {

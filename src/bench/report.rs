@@ -9,6 +9,9 @@ use super::noise::{NoiseRun, SkyMask};
 pub(super) const FIRST_FRAME_TARGET_MS: f64 = 100.0;
 /// Parallel efficiency from one thread to all: the target.
 pub(super) const EFFICIENCY_TARGET: f64 = 0.85;
+/// Time to 1 % over a 4096×2048 sunset export (`--export-noise`), s: the
+/// issue's target.
+const EXPORT_TARGET_S: f64 = 15.0 * 60.0;
 /// Peak memory of the measured render (`--memory`), GiB: the target.
 pub(super) const MEMORY_TARGET_GIB: f64 = 1.5;
 
@@ -137,6 +140,37 @@ pub struct AblationRow {
     pub cpu_share: f64,
 }
 
+/// The sunset at a larger size and the 4096×2048 export's time
+/// extrapolated from it (`--export-noise`).
+#[derive(Clone, Debug, Serialize)]
+pub struct ExportNoise {
+    /// The scene (a preset as an equirect map).
+    pub scene: String,
+    /// Width rendered, pixels.
+    pub width: u32,
+    /// Height rendered, pixels.
+    pub height: u32,
+    /// Time the two renders took, s.
+    pub seconds: f64,
+    /// Passes of render A and of render B.
+    pub passes: [u32; 2],
+    /// Relative noise over the whole image (ground included, the sun's
+    /// cone left out).
+    pub noise_whole: f64,
+    /// The same over the sky.
+    pub noise_sky: f64,
+    /// The same over the ground.
+    pub noise_ground: f64,
+    /// Time to 1 % over the whole image of a 4096×2048 export,
+    /// extrapolated from this size (noise ∝ 1/√time, time ∝ pixels), s.
+    pub time_to_1pct_4k_s: f64,
+    /// The same extrapolated from the 256×128 scene of the same run, s
+    /// (null where the run left the scene out).
+    pub time_to_1pct_4k_s_from_bench: Option<f64>,
+    /// CPU time over (wall time × threads) while it rendered.
+    pub cpu_share: f64,
+}
+
 /// The whole report (`--json` prints it).
 #[derive(Clone, Debug, Serialize)]
 pub struct Report {
@@ -163,6 +197,8 @@ pub struct Report {
     pub scaling: Option<ScalingResult>,
     /// Peak memory (`--memory`).
     pub memory: Option<MemoryResult>,
+    /// The sunset measured at 1024×512 (`--export-noise`).
+    pub export_noise: Option<ExportNoise>,
     /// Remarks on the run (load, smoke budgets).
     pub notes: Vec<String>,
 }
@@ -415,6 +451,28 @@ pub fn format_report(report: &Report) -> String {
             yes_no(mem.peak_rss_gib <= MEMORY_TARGET_GIB),
             mem.method,
             mem.command
+        );
+    }
+    if let Some(e) = &report.export_noise {
+        let _ = writeln!(out);
+        let from_bench = e
+            .time_to_1pct_4k_s_from_bench
+            .map_or("n/a".into(), |s| format!("{:.0} min", s / 60.0));
+        let _ = writeln!(
+            out,
+            "Export noise: {} at {}×{}, {}+{} passes in {:.1} s: whole image {}, sky {}, ground {}; a 4096×2048 export to 1 % extrapolated from it: {:.0} min (from the 256×128 scene: {from_bench}; target ≤ 15 min: {}); CPU share {}",
+            e.scene,
+            e.width,
+            e.height,
+            e.passes[0],
+            e.passes[1],
+            e.seconds,
+            pct(e.noise_whole),
+            pct(e.noise_sky),
+            pct(e.noise_ground),
+            e.time_to_1pct_4k_s / 60.0,
+            yes_no(e.time_to_1pct_4k_s <= EXPORT_TARGET_S),
+            pct(e.cpu_share)
         );
     }
     let _ = writeln!(out);

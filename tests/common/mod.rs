@@ -1,8 +1,10 @@
-//! What the command-line test files share: running the binary headless
-//! and reading its errors.
+//! What the test files share: running the binary headless and reading
+//! its errors, and (`estimate`) the estimator tests' statistics.
 
 // Each test file uses its own share of these.
 #![allow(dead_code)]
+
+pub mod estimate;
 
 use std::process::{Command, Output};
 
