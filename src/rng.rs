@@ -102,15 +102,6 @@ impl Rng {
         self
     }
 
-    /// The first two coordinates of point `index` (< 2¹⁶) of the Sobol
-    /// sequence Owen-scrambled for `pixel`, as [`Self::with_sobol_prefix`]
-    /// gives them (low bits from this generator), without the rest.
-    pub fn sobol_2d(&mut self, seed: u64, pixel: u64, index: u32) -> [f64; 2] {
-        debug_assert!(u64::from(index) < SOBOL_POINTS);
-        let point = sobol_burley::sample_4d(index, 0, sobol_scramble(seed, pixel));
-        [0, 1].map(|k| self.sobol_uniform(point[k]))
-    }
-
     /// Sobol coordinate `v` made uniform on [0, 1) at full precision: the
     /// Sobol values are multiples of 2⁻²³, and 30 random bits below that
     /// fill the rest (the sum is exact and at most 1 − 2⁻⁵³).

@@ -356,31 +356,29 @@ impl Renderer {
         // Samples 1, 2, … take the sequence's points 0, 1, … (so that every
         // 2ᵐ of them are stratified; a mirror pair's, every other point);
         // the draft sample 0 and samples past the sequence's end draw
-        // independent numbers.
-        let point = sample
-            .checked_sub(1)
-            .map(|k| k * slot.stride + slot.offset)
-            .filter(|&point| point < SOBOL_POINTS);
+        // independent numbers. Under a half mirror each part's samples take
+        // a sequence of their own, numbered within the part: stratified
+        // over the part as a pixel's are over it, and independent of the
+        // other part's. (With one sequence for both, each part's samples
+        // were stratified against the other's, which anti-correlated the
+        // noise of the two neighbours that read them: −0.15 along the rows
+        // of an airliner's sky.)
+        let (sequence, point) = match part {
+            Some((left, index)) => (
+                (pixel << 1 | u64::from(left)) | 1 << 63,
+                (sample >= 1).then_some(index),
+            ),
+            None => (
+                slot.pixel,
+                sample.checked_sub(1).map(|k| k * slot.stride + slot.offset),
+            ),
+        };
+        let point = point.filter(|&point| point < SOBOL_POINTS);
         let mut rng = match (integrator.plan.sampler, point) {
-            (Sampler::Sobol, Some(point)) => rng.with_sobol_prefix(seed, slot.pixel, point as u32),
+            (Sampler::Sobol, Some(point)) => rng.with_sobol_prefix(seed, sequence, point as u32),
             _ => rng,
         };
         let (u, v) = (rng.uniform(), rng.uniform());
-        // Under a half mirror each part's samples take the pixel position
-        // from a sequence of their own (numbered within the part), so that
-        // they are stratified over the part as a pixel's are over it.
-        let (u, v) = match (part, point, integrator.plan.sampler) {
-            (Some((left, index)), Some(_), Sampler::Sobol) => {
-                let part_pixel = (pixel << 1 | u64::from(left)) | 1 << 63;
-                if index < SOBOL_POINTS {
-                    let [u, v] = rng.sobol_2d(seed, part_pixel, index as u32);
-                    (u, v)
-                } else {
-                    (u, v)
-                }
-            }
-            _ => (u, v),
-        };
         let px = f64::from(x)
             + match (self.halves.zip(part), slot.reflect) {
                 (Some((h, (left, _))), _) => h.position(left, u),
@@ -401,8 +399,13 @@ impl Renderer {
         // low-discrepancy sequence): every sample is still uniform, so the
         // pixel mean stays unbiased, but the spectrum is covered evenly and
         // colour noise falls faster than with independent wavelengths.
-        let start = Rng::new(self.scene.render.seed, slot.pixel).uniform();
-        let step = sample * slot.stride + slot.offset;
+        // A half mirror's parts each follow their own recurrence, as their
+        // sequences above.
+        let start = Rng::new(self.scene.render.seed, sequence).uniform();
+        let step = match part {
+            Some((_, index)) => index,
+            None => sample * slot.stride + slot.offset,
+        };
         let u0 = (start + step as f64 * GOLDEN_RATIO_CONJUGATE).fract();
         let (lanes, pdfs) = self.sample_lanes(u0);
         let light = integrator.light(self.observer_m, dir, &lanes, &mut rng);
