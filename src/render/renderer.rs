@@ -400,10 +400,12 @@ impl Renderer {
         // pixel mean stays unbiased, but the spectrum is covered evenly and
         // colour noise falls faster than with independent wavelengths.
         // A half mirror's parts each follow their own recurrence, as their
-        // sequences above.
+        // sequences above (the draft at its step 0, the part's full
+        // samples from step 1).
         let start = Rng::new(self.scene.render.seed, sequence).uniform();
         let step = match part {
-            Some((_, index)) => index,
+            Some(_) if sample == 0 => 0,
+            Some((_, index)) => index + 1,
             None => sample * slot.stride + slot.offset,
         };
         let u0 = (start + step as f64 * GOLDEN_RATIO_CONJUGATE).fract();

@@ -134,7 +134,6 @@ impl Optics<'_> {
         let Some(span) = self.medium.span(origin, first) else {
             return;
         };
-        let nus: Vec<f64> = dirs.iter().map(|d| d.dot(self.sun_direction)).collect();
         let mut transmittance = [1.0; NODES];
         let mut t0 = span.t_enter;
         for t1 in step_ends(span.t_enter, span.t_exit, -origin.dot(first), steps) {
@@ -166,8 +165,9 @@ impl Optics<'_> {
                     transmittance[k] *= step_t;
                 }
             }
-            for ((dir, &nu), o) in dirs.iter().zip(&nus).zip(out.iter_mut()) {
+            for (dir, o) in dirs.iter().zip(out.iter_mut()) {
                 let x = origin + *dir * tm;
+                let nu = dir.dot(self.sun_direction);
                 let sun = if sources.sunlight {
                     self.sun_transmittance(x)
                 } else {
