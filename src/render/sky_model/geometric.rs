@@ -23,8 +23,6 @@
 
 use std::f64::consts::{LN_2, LOG2_E};
 
-use super::optics::{Spectrum, NODES};
-
 /// Ratio between neighbours past which the interpolation is geometric.
 const GEOMETRIC_PAST: f64 = 1.25;
 
@@ -38,12 +36,13 @@ pub(super) fn geometric(a: f64, b: f64, f: f64) -> f64 {
     }
 }
 
-/// [`geometric`] at each wavelength of `a` and `b`, at one fraction `f`
-/// (0 ≤ f ≤ 1); within 10⁻⁸ of it relative.
-pub(super) fn geometric_spectrum(a: &Spectrum, b: &Spectrum, f: f64) -> Spectrum {
-    let mut out = [0.0; NODES];
+/// [`geometric`] at each wavelength of `a` and `b` (a spectrum at the
+/// model's `N` wavelengths), at one fraction `f` (0 ≤ f ≤ 1); within
+/// 10⁻⁸ of it relative.
+pub(super) fn geometric_spectrum<const N: usize>(a: &[f64; N], b: &[f64; N], f: f64) -> [f64; N] {
+    let mut out = [0.0; N];
     let mut any_far = false;
-    for n in 0..NODES {
+    for n in 0..N {
         out[n] = a[n] + f * (b[n] - a[n]);
         any_far |= b[n] > GEOMETRIC_PAST * a[n] || a[n] > GEOMETRIC_PAST * b[n];
     }
@@ -51,16 +50,16 @@ pub(super) fn geometric_spectrum(a: &Spectrum, b: &Spectrum, f: f64) -> Spectrum
         return out;
     }
     // Simple loops, one operation over the spectrum each.
-    let mut y = [0.0; NODES];
-    for n in 0..NODES {
+    let mut y = [0.0; N];
+    for n in 0..N {
         y[n] = f * log2(b[n] / a[n]);
     }
-    let mut power = [0.0; NODES];
-    for n in 0..NODES {
+    let mut power = [0.0; N];
+    for n in 0..N {
         power[n] = a[n] * exp2(y[n]);
     }
     let mut exact = false;
-    for n in 0..NODES {
+    for n in 0..N {
         let (a, b) = (a[n], b[n]);
         let far = b > GEOMETRIC_PAST * a || a > GEOMETRIC_PAST * b;
         let positive = a > 0.0 && b > 0.0;
@@ -71,7 +70,7 @@ pub(super) fn geometric_spectrum(a: &Spectrum, b: &Spectrum, f: f64) -> Spectrum
         }
     }
     if exact {
-        for n in 0..NODES {
+        for n in 0..N {
             out[n] = geometric(a[n], b[n], f);
         }
     }
@@ -146,21 +145,23 @@ mod tests {
 
     #[test]
     fn the_spectrum_matches_the_scalar_interpolation() {
+        // The model's 16 wavelengths.
+        const N: usize = 16;
         for f in [0.0, 0.13, 0.5, 0.87, 1.0] {
-            let a: Spectrum = std::array::from_fn(|n| match n {
+            let a: [f64; N] = std::array::from_fn(|n| match n {
                 0 => 0.0,
                 1 => 1e-310,
                 2 => -1.0,
                 3 => 1e-250,
                 _ => (n as f64 * 0.37).exp() * 1e-3,
             });
-            let b: Spectrum = std::array::from_fn(|n| match n {
+            let b: [f64; N] = std::array::from_fn(|n| match n {
                 3 => 1e50,
                 4 => a[4] * 1.1,
                 _ => (n as f64 * 1.91).exp() * 1e-5 + 1e-9,
             });
             let out = geometric_spectrum(&a, &b, f);
-            for n in 0..NODES {
+            for n in 0..N {
                 let exact = geometric(a[n], b[n], f);
                 assert!(
                     (out[n] - exact).abs() <= 1e-8 * exact.abs(),
