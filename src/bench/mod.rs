@@ -290,6 +290,14 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
             ));
         }
     }
+    if let Some(e) = args.export_noise {
+        if !(e.is_finite() && (0.01..=86_400.0).contains(&e)) {
+            return Err(format!(
+                "bench: invalid export-noise budget: {} is outside the valid range 0.01 to 86400 s",
+                crate::scene::show_number(e)
+            ));
+        }
+    }
     let seed = args.seed.unwrap_or(DEFAULT_SEED);
     let max_seed = crate::scene::MAX_SEED - 1;
     if seed > max_seed {
@@ -529,11 +537,6 @@ fn measure_export_noise(
     seed: u64,
     from_bench_s: Option<f64>,
 ) -> Result<ExportNoise, String> {
-    if !(seconds.is_finite() && seconds > 0.0) {
-        return Err(format!(
-            "bench: --export-noise must be a positive number of seconds, not {seconds}"
-        ));
-    }
     let mut scene = bench_scene(EXPORT_NOISE_SCENE)?;
     (scene.render.width, scene.render.height) = size;
     let (w, h) = size;
@@ -844,6 +847,25 @@ mod tests {
             assert!(
                 err.contains("--variants") && err.contains(says),
                 "{bad}: {err}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_bad_export_noise_budget_is_refused_before_anything_runs() {
+        for bad in [-1.0, 0.0, f64::NAN, 1e9] {
+            let args = BenchArgs {
+                scenes: Some(vec!["midday".into()]),
+                quick: true,
+                export_noise: Some(bad),
+                ..BenchArgs::default()
+            };
+            let start = std::time::Instant::now();
+            let err = bench(&args).err().unwrap();
+            assert!(err.contains("export-noise"), "{bad}: {err}");
+            assert!(
+                start.elapsed().as_secs_f64() < 1.0,
+                "{bad}: something ran first"
             );
         }
     }
