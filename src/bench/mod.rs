@@ -34,6 +34,7 @@ use crate::render::Renderer;
 use crate::scene::{CameraKind, Scene};
 
 mod ablation;
+mod export_noise;
 mod fast;
 mod machine;
 mod noise;
@@ -465,14 +466,11 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         Some(seconds) => {
             let sunset_256 = results
                 .iter()
-                .find(|r| r.scene == EXPORT_NOISE_SCENE)
+                .find(|r| r.scene == export_noise::SCENE)
                 .map(|r| r.time_to_1pct_4k_s);
-            let size = if args.quick {
-                QUICK_EXPORT_NOISE_SIZE
-            } else {
-                EXPORT_NOISE_SIZE
-            };
-            Some(pool.install(|| measure_export_noise(seconds, size, seed, sunset_256))?)
+            let mut scene = bench_scene(export_noise::SCENE)?;
+            (scene.render.width, scene.render.height) = export_noise::size(args.quick);
+            Some(pool.install(|| export_noise::measure(&scene, seconds, seed, sunset_256))?)
         }
         None => None,
     };
@@ -514,47 +512,6 @@ pub fn bench(args: &BenchArgs) -> Result<Report, String> {
         memory,
         export_noise,
         notes,
-    })
-}
-
-/// The scene of `--export-noise`: the 4K target is a sunset.
-const EXPORT_NOISE_SCENE: &str = "sunset";
-/// The size `--export-noise` renders at (the "measured 1024×512").
-const EXPORT_NOISE_SIZE: (u32, u32) = (1024, 512);
-/// ... and with `--quick` (a smoke run of the measurement).
-const QUICK_EXPORT_NOISE_SIZE: (u32, u32) = (128, 64);
-/// The export its time is extrapolated to.
-const EXPORT_SIZE: (u32, u32) = (4096, 2048);
-
-/// `--export-noise`: the sunset at `size` ([`EXPORT_NOISE_SIZE`]), two renders of
-/// `seconds`/2 each, its whole-image noise and the time to 1 % at
-/// [`EXPORT_SIZE`] extrapolated from it (noise ∝ 1/√time, time ∝
-/// pixels), beside the same from the 256×128 scene (`from_bench_s`,
-/// where the run had it).
-fn measure_export_noise(
-    seconds: f64,
-    size: (u32, u32),
-    seed: u64,
-    from_bench_s: Option<f64>,
-) -> Result<ExportNoise, String> {
-    let mut scene = bench_scene(EXPORT_NOISE_SCENE)?;
-    (scene.render.width, scene.render.height) = size;
-    let (w, h) = size;
-    eprintln!("bench: {EXPORT_NOISE_SCENE} at {w}×{h}, {seconds} s");
-    let run = measure_noise(&scene, seconds, seed)?;
-    let scale = f64::from(EXPORT_SIZE.0 * EXPORT_SIZE.1) / f64::from(w * h);
-    Ok(ExportNoise {
-        scene: EXPORT_NOISE_SCENE.into(),
-        width: w,
-        height: h,
-        seconds: run.seconds,
-        passes: run.passes,
-        noise_whole: run.noise_whole,
-        noise_sky: run.noise,
-        noise_ground: run.noise_ground,
-        time_to_1pct_4k_s: time_to_noise(run.noise_whole, run.seconds, 0.01) * scale,
-        time_to_1pct_4k_s_from_bench: from_bench_s,
-        cpu_share: run.cpu_share,
     })
 }
 
