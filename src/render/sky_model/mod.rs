@@ -519,17 +519,10 @@ mod tests {
         for name in ["twilight", "space"] {
             let renderer = Renderer::new(&Scene::preset(name).unwrap()).unwrap();
             let (medium, sun) = (&renderer.medium, renderer.sun_direction);
-            let tables = ModelTables::shared(medium, &renderer.lane_table);
+            let model = renderer.sky_model();
+            let tables = Arc::clone(&model.tables);
             let field = ModelField::from_tables(Arc::clone(&tables), sun);
             let optics = field.optics(medium);
-            let model = SkyModel::from_tables(
-                Arc::clone(&tables),
-                medium,
-                &renderer.lane_table,
-                renderer.cmf,
-                sun,
-                renderer.observer_m,
-            );
             for elevation_deg in [-60.0_f64, -21.0, -1.0, 0.5, 10.0, 80.0] {
                 let dirs: Vec<DVec3> = (0..7)
                     .map(|k| {
