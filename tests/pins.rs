@@ -69,9 +69,9 @@ fn probe_hash(preset: &str) -> u64 {
 
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
-    ("midday", 0x4b51ef7e7c98d4e5, 0x4657fb984c6cdf7d),
-    ("sunset", 0xfff53f7b348b4a91, 0x6ddb519aecb46900),
-    ("twilight", 0xc7035ee0e0a8c5cd, 0xeed94b1cb6349648),
+    ("midday", 0xa693085959c2560d, 0x600ba85c2a27e7eb),
+    ("sunset", 0x51c7e1a5b02553f1, 0x4ab9f63bf6b918dd),
+    ("twilight", 0x38c51d31286ff9cd, 0x68f70fe9f8198982),
     ("space", 0x3d4744fd8fc585c2, 0xa09d945a1cd8d6e5),
 ];
 

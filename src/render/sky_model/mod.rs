@@ -28,7 +28,8 @@
 //!    of orders falling toward the whole field's.
 //!    The sums over directions weight each by the phase function
 //!    averaged over its cell (a haze's or dust's forward peak is narrower
-//!    than their spacing).
+//!    than their spacing), scaled per view so that they sum the phase
+//!    function to one, as its integral is.
 //!    Hillaire's isotropic factor for the orders past the second takes
 //!    their light as made at the point itself and isotropic; at the
 //!    horizon and at twilight it arrives from far away, and that factor
@@ -41,7 +42,10 @@
 //!    A = ∫ T σ T_sun dt, and the rest (Ψ, the ground) is a third term B.
 //!    A, B are tabulated over elevation (dense at the horizon) and azimuth
 //!    from the sun; each pixel then evaluates the phase functions at its
-//!    own angle, so the aureole is as sharp as the phase function.
+//!    own angle, so the aureole is as sharp as the phase function. B is
+//!    tabulated over the shape of the multiple scattering's source about
+//!    the sun at the observer, and multiplied by it at each pixel's own
+//!    angle likewise.
 //!
 //! The ground is Lambertian, lit by the sun and by the model's own sky
 //! (its irradiance tabulated over the solar zenith). The spectrum is the
@@ -71,7 +75,7 @@ mod optics;
 mod orders;
 mod stored;
 
-use optics::{node_wavelength, Gathered, Optics, Sources, Spectrum, NODES};
+use optics::{node_wavelength, Gathered, Optics, Sources, Spectrum, MS_VIEW_ANGLES, NODES};
 pub use orders::{forget_shared_tables, keep_shared_tables_on_disk, ModelTables};
 
 /// Steps of a view ray's march (at 32, the midday sky read 1.3 % off the
@@ -94,6 +98,10 @@ pub struct SkyModel {
     sun_direction: DVec3,
     /// The atmosphere's tables (the phase functions at each wavelength).
     tables: Arc<ModelTables>,
+    /// The shape of B about the sun: the source of the light scattered
+    /// more than once at the observer, at each of the ν table's view–sun
+    /// cosines ([`aureole_shape`]).
+    aureole: [Spectrum; MS_VIEW_ANGLES],
     /// XYZ per unit response at each node: K_M ∫ E_sun h_k x̄ dλ.
     xyz_weights: [[f64; 3]; NODES],
 }
@@ -202,6 +210,7 @@ impl SkyModel {
         let frame = [zenith, x, zenith.cross(x)];
         let r = observer_m.length();
         let rows = Rows::new(medium.planet_radius_m, medium.top_radius_m, r);
+        let aureole = aureole_shape(&optics, ms, observer_m);
         // A row's directions share their elevation: one fan of marches.
         let view = (0..VIEW_ROWS)
             .into_par_iter()
@@ -219,9 +228,14 @@ impl SkyModel {
                     Sources::all(ms, sky),
                     &mut gathered,
                 );
-                gathered
-                    .into_iter()
-                    .map(|g| [g.rayleigh, g.aerosol, g.isotropic])
+                gathered.into_iter().zip(dirs).map(|(g, dir)| {
+                    let shape = shape_at(&aureole, dir.dot(sun_direction));
+                    [
+                        g.rayleigh,
+                        g.aerosol,
+                        std::array::from_fn(|n| g.isotropic[n] / shape[n]),
+                    ]
+                })
             })
             .collect();
         Self {
@@ -231,6 +245,7 @@ impl SkyModel {
             sun_direction,
             xyz_weights: xyz_weights(medium, lane_table, cmf, &nodes),
             tables: field.tables,
+            aureole,
         }
     }
 
@@ -253,10 +268,12 @@ impl SkyModel {
             )
         };
         let [ar, aa, b] = [pick(0), pick(1), pick(2)];
-        let (pr, pa) = self.tables.phases.at(dir.dot(self.sun_direction));
+        let nu = dir.dot(self.sun_direction);
+        let (pr, pa) = self.tables.phases.at(nu);
+        let shape = shape_at(&self.aureole, nu);
         let mut xyz = [0.0; 3];
         for n in 0..NODES {
-            let response = pr[n] * ar[n] + pa[n] * aa[n] + b[n];
+            let response = pr[n] * ar[n] + pa[n] * aa[n] + b[n] * shape[n];
             for (v, w) in xyz.iter_mut().zip(self.xyz_weights[n]) {
                 *v += response * w;
             }
@@ -318,6 +335,63 @@ impl SkyModel {
             pixels,
         }
     }
+}
+
+/// The source of the light scattered more than once at `observer_m` (its
+/// altitude clamped into the air), σ_R J_R + σ_A J_A from the ν table
+/// alone, at each of the table's view–sun cosines, each wavelength's
+/// scaled to its largest and kept above a millionth of it.
+///
+/// Along a view ray the view–sun cosine ν is fixed, so the table's
+/// multiply scattered light B is, like that source, piecewise linear in
+/// the ν table's index about the sun: an aureole a few degrees wide
+/// where the haze's or dust's forward peak scatters twice. The view
+/// table's columns (5.8° apart) hold B over this shape, which is smooth
+/// in azimuth, and each pixel multiplies it back at its own ν, as the
+/// once-scattered light's phase functions are.
+fn aureole_shape(
+    optics: &Optics<'_>,
+    ms: &optics::MsTable,
+    observer_m: DVec3,
+) -> [Spectrum; MS_VIEW_ANGLES] {
+    let medium = optics.medium;
+    let r = observer_m
+        .length()
+        .clamp(medium.planet_radius_m, medium.top_radius_m);
+    let x = observer_m.normalize() * r;
+    let mu_s = x.normalize().dot(optics.sun_direction);
+    let mut sigma = [[0.0; NODES]; 2];
+    for (g, lanes) in optics.groups.iter().enumerate() {
+        let c = medium.coefficients(r, lanes);
+        for j in 0..LANES {
+            sigma[0][g * LANES + j] = c.rayleigh[j];
+            sigma[1][g * LANES + j] = c.aerosol_scattering[j];
+        }
+    }
+    let mut shape: [Spectrum; MS_VIEW_ANGLES] = std::array::from_fn(|a| {
+        let [jr, ja] = ms.about_sun(r, mu_s, a);
+        std::array::from_fn(|n| sigma[0][n] * jr[n] + sigma[1][n] * ja[n])
+    });
+    for n in 0..NODES {
+        let peak = shape.iter().map(|s| s[n]).fold(0.0, f64::max);
+        for s in &mut shape {
+            s[n] = if peak > 0.0 && peak.is_finite() {
+                (s[n] / peak).max(1e-6)
+            } else {
+                1.0
+            };
+        }
+    }
+    shape
+}
+
+/// [`aureole_shape`] at view–sun cosine `nu`, linear in the ν table's
+/// index as the table's own look-ups are.
+fn shape_at(shape: &[Spectrum; MS_VIEW_ANGLES], nu: f64) -> Spectrum {
+    let x = optics::view_cosine_index(nu);
+    let a = (x as usize).min(MS_VIEW_ANGLES - 2);
+    let f = (x - a as f64).min(1.0);
+    std::array::from_fn(|n| shape[a][n] + f * (shape[a + 1][n] - shape[a][n]))
 }
 
 /// The spread of a pixel's four first luminances, relative to the

@@ -15,9 +15,10 @@ use rayon::prelude::*;
 use super::optics::{
     altitude_of, node_wavelength, view_cosine_index, view_cosine_of, view_zenith_cosine_of,
     zenith_cosine_of, MsTable, Optics, Phases, Quadrature, SkyIrradiance, Sources, Spectrum,
-    GROUND_DIRECTIONS_HIGHER, GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_AT_SUN,
-    MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES,
-    SUN_CAP_COSINE, SUN_INNER_CAP_COSINE, TABLE_STEPS, TABLE_STEPS_HIGHER,
+    GROUND_DIRECTIONS_HIGHER, GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_AT_CORE,
+    MS_DIRECTIONS_AT_SUN, MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS,
+    MS_VIEW_ZENITHS, MS_ZENITHS, NODES, SUN_CAP_COSINE, SUN_CORE_CAP_COSINE, SUN_INNER_CAP_COSINE,
+    TABLE_STEPS, TABLE_STEPS_HIGHER,
 };
 use super::stored;
 use crate::render::lanes::LaneTable;
@@ -70,8 +71,34 @@ impl MsTable {
                         .map(|(d, _, cells)| cells.at(d.dot(v)))
                         .collect()
                 };
+                // The phase functions toward a view, each scaled so that
+                // the quadrature sums it to one, as its integral over the
+                // sphere is: a forward peak a few cells wide is summed
+                // over a lattice whose points fall differently about each
+                // view, and its sum strayed by ±15 % from view to view
+                // (the Martian dust's sky at sunset in rings 60° from the
+                // sun). The light arriving is smooth there, so the
+                // normalised sum is the light about the peak.
+                let normalised_toward = |v: DVec3| -> Vec<(Spectrum, Spectrum)> {
+                    let mut phases = phases_toward(v);
+                    let (mut sum_r, mut sum_a) = ([0.0; NODES], [0.0; NODES]);
+                    for ((_, weight, _), (pr, pa)) in points.iter().zip(&phases) {
+                        for n in 0..NODES {
+                            sum_r[n] += weight * pr[n];
+                            sum_a[n] += weight * pa[n];
+                        }
+                    }
+                    let scale = |sum: f64| if sum > 0.0 { 1.0 / sum } else { 1.0 };
+                    for (pr, pa) in &mut phases {
+                        for n in 0..NODES {
+                            pr[n] *= scale(sum_r[n]);
+                            pa[n] *= scale(sum_a[n]);
+                        }
+                    }
+                    phases
+                };
                 let to_sun = phases_toward(sun);
-                let to_view: Vec<Vec<_>> = views.iter().map(|&v| phases_toward(v)).collect();
+                let to_view: Vec<Vec<_>> = views.iter().map(|&v| normalised_toward(v)).collect();
                 // Views at each tabulated zenith, at azimuths from the sun
                 // spread over a half turn (the other half mirrors them),
                 // and their places in the ν table.
@@ -88,7 +115,7 @@ impl MsTable {
                     .collect();
                 let to_zenith_view: Vec<Vec<_>> = zenith_views
                     .iter()
-                    .map(|&(v, _)| phases_toward(v))
+                    .map(|&(v, _)| normalised_toward(v))
                     .collect();
                 let rows: Vec<ZenithEntries> = (0..MS_ALTITUDES)
                     .map(|i| {
@@ -347,18 +374,20 @@ fn tail_after(older: f64, before: f64, last: f64, floor: f64) -> f64 {
 fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
     // J₂ from the once-scattered light; E₁ of the once-scattered sky.
     let cells = |count: usize| optics.phases.averaged_over_cells(count);
-    let (at_sun_cells, near_cells, far_cells) = (
+    let (core_cells, at_sun_cells, near_cells, far_cells) = (
+        cells(MS_DIRECTIONS_AT_CORE),
         cells(MS_DIRECTIONS_AT_SUN),
         cells(MS_DIRECTIONS_NEAR_SUN),
         cells(MS_DIRECTIONS),
     );
     let first = Quadrature::rings(
         &[
+            (MS_DIRECTIONS_AT_CORE, SUN_CORE_CAP_COSINE),
             (MS_DIRECTIONS_AT_SUN, SUN_INNER_CAP_COSINE),
             (MS_DIRECTIONS_NEAR_SUN, SUN_CAP_COSINE),
             (MS_DIRECTIONS, -1.0),
         ],
-        &[&at_sun_cells, &near_cells, &far_cells],
+        &[&core_cells, &at_sun_cells, &near_cells, &far_cells],
     );
     // The orders past the second are summed about the sun too: in a dust
     // or haze thick enough, the light scattered twice is still an aureole
