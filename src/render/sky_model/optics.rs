@@ -462,22 +462,34 @@ pub(super) fn view_cosine_index(nu: f64) -> f64 {
     (0.5 * (1.0 - nu.clamp(-1.0, 1.0))).sqrt() * (MS_VIEW_ANGLES - 1) as f64
 }
 
+/// The entry below fractional index `x` of a table of `n` entries and the
+/// weight of the one above it, `x` clamped to the table.
+fn split(x: f64, n: usize) -> (usize, f64) {
+    let x = x.clamp(0.0, (n - 1) as f64);
+    let i = (x as usize).min(n - 2);
+    (i, x - i as f64)
+}
+
 impl MsTable {
+    /// The altitude row and the solar-zenith slice below distance `r`
+    /// from the centre and solar-zenith cosine `mu_s`, each with the
+    /// weight of the next ([`split`]).
+    fn altitude_and_zenith(&self, r: f64, mu_s: f64) -> ((usize, f64), (usize, f64)) {
+        (
+            split(
+                altitude_index(r - self.planet_radius_m, MS_ALTITUDES, self.top_m),
+                MS_ALTITUDES,
+            ),
+            split(zenith_index(mu_s), MS_ZENITHS),
+        )
+    }
+
     /// (J_R, J_A) of the ν table at its `angle`-th view–sun cosine
     /// ([`view_cosine_of`]), distance `r` from the centre and solar-zenith
     /// cosine `mu_s`, without the view's zenith factor: the shape of the
     /// light scattered more than once about the sun.
     pub(super) fn about_sun(&self, r: f64, mu_s: f64, angle: usize) -> [Spectrum; 2] {
-        let split = |x: f64, n: usize| {
-            let x = x.clamp(0.0, (n - 1) as f64);
-            let i = (x as usize).min(n - 2);
-            (i, x - i as f64)
-        };
-        let (i, fi) = split(
-            altitude_index(r - self.planet_radius_m, MS_ALTITUDES, self.top_m),
-            MS_ALTITUDES,
-        );
-        let (k, fk) = split(zenith_index(mu_s), MS_ZENITHS);
+        let ((i, fi), (k, fk)) = self.altitude_and_zenith(r, mu_s);
         let slice = |k: usize| {
             let at = |i: usize| &self.values[(i * MS_ZENITHS + k) * MS_VIEW_ANGLES + angle];
             let (low, high) = (at(i), at(i + 1));
@@ -490,16 +502,7 @@ impl MsTable {
     /// (J_R, J_A) at distance `r` from the centre, solar-zenith cosine
     /// `mu_s`, view–sun cosine `nu` and view-zenith cosine `mu_v`.
     pub(super) fn at(&self, r: f64, mu_s: f64, nu: f64, mu_v: f64) -> [Spectrum; 2] {
-        let split = |x: f64, n: usize| {
-            let x = x.clamp(0.0, (n - 1) as f64);
-            let i = (x as usize).min(n - 2);
-            (i, x - i as f64)
-        };
-        let (i, fi) = split(
-            altitude_index(r - self.planet_radius_m, MS_ALTITUDES, self.top_m),
-            MS_ALTITUDES,
-        );
-        let (k, fk) = split(zenith_index(mu_s), MS_ZENITHS);
+        let ((i, fi), (k, fk)) = self.altitude_and_zenith(r, mu_s);
         let (a, fa) = split(view_cosine_index(nu), MS_VIEW_ANGLES);
         let (z, fz) = split(view_zenith_index(mu_v), MS_VIEW_ZENITHS);
         // The view's azimuth from the sun's, φ ∈ [0, π], from
