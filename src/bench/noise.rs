@@ -171,6 +171,9 @@ pub struct NoiseRun {
     /// of A and B (`noise_whole`), or, with a reference budget, the mean
     /// of two longer renders of their own (seeds + 3 and + 4).
     pub reference_noise: f64,
+    /// Passes of the reference's two renders (A's and B's where the
+    /// reference is their mean).
+    pub reference_passes: [u32; 2],
     /// RMS error of one first pass (the draft, another seed) against the
     /// reference over the whole image, relative to its mean luminance,
     /// with the reference's own noise (`reference_noise`) taken out in
@@ -299,6 +302,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         model_error: f64::NAN,
         preview_error_2s: f64::NAN,
         reference_noise: f64::NAN,
+        reference_passes: [0; 2],
         reference: Vec::new(),
         whole_mask: Vec::new(),
     };
@@ -368,6 +372,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         run.circle_correlation,
     ) = c;
     run.reference_noise = run.noise_whole;
+    run.reference_passes = run.passes;
     run.reference = mean;
     run.whole_mask = whole;
     Ok(run)
@@ -389,10 +394,12 @@ pub fn measure_preview(
     // reference for the errors below, where A and B are still noisy).
     if let Some(seconds) = reference_s {
         let mut long = Vec::with_capacity(2);
-        for offset in [3, 4] {
+        for (offset, passes) in [3, 4].into_iter().zip(&mut run.reference_passes) {
             let s = with_seed(scene, seed, offset, "the reference")?;
             let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
-            long.push(luminance(&render_for(&renderer, seconds).film));
+            let rendered = render_for(&renderer, seconds);
+            *passes = rendered.passes;
+            long.push(luminance(&rendered.film));
         }
         run.reference_noise = relative_noise(&long[0], &long[1], whole);
         run.reference = long[0]
