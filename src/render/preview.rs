@@ -9,8 +9,9 @@
 //! the passes alone: only the preview ever shows the model.
 //!
 //! A full pass at sunset takes seconds on two cores; the model alone is
-//! 1–11 % off; corrected, two seconds after a change, about 0.5 % by day,
-//! 1 % from orbit and 3 % at twilight and on Mars (`BENCHMARKS.md`).
+//! 1–10 % off; corrected, two seconds after a change, about 0.4 % by day,
+//! 0.8 % from orbit and on Mars at noon and 1.7 % at twilight
+//! (`BENCHMARKS.md`).
 
 use std::time::{Duration, Instant};
 
