@@ -104,7 +104,7 @@ pub struct IntegratorOptions {
     /// The skylight the ground reflects splatted along the same circles:
     /// the camera's rays that meet the ground keep its direct sunlight, and
     /// bounces from points anywhere on the visible ground carry the rest to
-    /// the pixels of 16 points on their circle. Only with
+    /// the pixels of 48 points on their circle. Only with
     /// `circle_splatting`. Unset: on wherever `circle_splatting` is.
     pub ground_splatting: Option<bool>,
     /// The approximate sky model's light on the ground as a control

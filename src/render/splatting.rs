@@ -18,8 +18,9 @@ pub(crate) const SPLAT_STREAM: u64 = u64::MAX - 0x5b1a;
 /// The stream of the ground's bounces ([`super::ground_circles`]).
 const GROUND_STREAM: u64 = u64::MAX - 0x96d0;
 /// Ground bounces per path splatted in the air, each splatting
-/// [`GROUND_SPLATS`] positions (`BENCHMARKS.md`).
-const GROUND_WALKS_PER_WALK: u64 = 2;
+/// [`GROUND_SPLATS`] positions: more positions per bounce pay better than
+/// more bounces (`BENCHMARKS.md`).
+const GROUND_WALKS_PER_WALK: u64 = 1;
 /// Points splatted per pixel in each pass after the first ([`circles`];
 /// each with two directions and paths): with more, the camera's own
 /// samples (single scattering, the ground) get too few passes; 2 and 3
@@ -66,8 +67,8 @@ impl Renderer {
         const CHUNK: u64 = 256;
         // Chunks run in parallel between checks for cancellation; their
         // number does not change the image (splats are added in order).
-        // Capped: each holds up to CHUNK × (SPLATS_PER_WALK + the ground's
-        // GROUND_SPLATS) splats (half as many again with the ground) until added.
+        // Capped: each holds up to CHUNK × (SPLATS_PER_WALK +
+        // GROUND_WALKS_PER_WALK × GROUND_SPLATS) splats until added.
         let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
         let splatter = self.tables.splatter(
             &self.medium,
