@@ -70,8 +70,8 @@ fn probe_hash(preset: &str) -> u64 {
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
     ("midday", 0xa693085959c2560d, 0x600ba85c2a27e7eb),
-    ("sunset", 0x19915722fcf81b2d, 0x4ab9f63bf6b918dd),
-    ("twilight", 0x98d3a38f9149d519, 0x68f70fe9f8198982),
+    ("sunset", 0xbcc4963c0f7d58b5, 0x4ab9f63bf6b918dd),
+    ("twilight", 0xc26792eeb8612e51, 0x68f70fe9f8198982),
     ("space", 0x3d4744fd8fc585c2, 0xa09d945a1cd8d6e5),
 ];
 

@@ -97,7 +97,7 @@ pub struct IntegratorOptions {
     /// Multiply scattered light splatted along the scene's circles of
     /// symmetry: the camera's own paths keep single scattering and the
     /// ground's light, and paths started anywhere in the visible air carry
-    /// the rest to the pixels of 64 points on their start's circle about
+    /// the rest to the pixels of 96 points on their start's circle about
     /// the sun's axis. Needs `camera_samples` > 0, `next_event_estimation`
     /// and the observer inside the atmosphere. Unset: the regime table's.
     pub circle_splatting: Option<bool>,

@@ -6,10 +6,12 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-/// Positions along a circle per point, in a broad optimum between 48 and
-/// 96 (`BENCHMARKS.md`): the phase-drawn positions follow the light the
-/// paths found, and the paths cost more than the positions.
-pub const SPLATS_PER_WALK: usize = 64;
+/// Positions along a circle per point: the phase-drawn positions follow
+/// the light the paths found, and the paths cost more than the positions.
+/// With the ground's one bounce a walk (`super::splatting`), 96 pay at
+/// sunset and more so the larger the image, whose circles cross more
+/// pixels (`BENCHMARKS.md`, the circle splatting row).
+pub const SPLATS_PER_WALK: usize = 96;
 /// Of them, drawn before the path's direction: from the Cauchy density
 /// about the observer's nearest point, and uniformly.
 pub(super) const CAUCHY_SPLATS: usize = 4;
