@@ -60,11 +60,11 @@ use super::medium::{Lanes, Medium, SpectralLanes, LANES};
 use crate::rng::Rng;
 
 /// Positions along a circle per bounce: a position costs a transmittance
-/// look-up and a projection, a bounce a whole path. The ground's noise
-/// follows the positions splatted, not the bounces: at sunset one bounce
-/// of 32 positions leaves it as two of 16 do, for less time, and one of
-/// 48 leaves the whole image 0.94× the variance (the ground 0.69×) at
-/// equal time (`BENCHMARKS.md`, the decisions table).
+/// look-up and a projection, a bounce a whole path. The reflected
+/// skylight is nearly the same over the visible ground, so the ground's
+/// noise follows how many pixels each bounce's estimate is spread over
+/// more than how many bounces there are: one bounce of many positions
+/// beats several of few (`BENCHMARKS.md`, the ground splatting row).
 pub const GROUND_SPLATS: usize = 48;
 /// Of them, from the Cauchy density about the observer's nearest point,
 /// and from the narrow one about the foot's (the rest uniform).
@@ -490,12 +490,10 @@ mod tests {
 
     /// Each pixel's mean over `walks` circles of Σ J cos_x dA / (t² p):
     /// the estimate of ∫ J dω over the ground the pixel sees, with its
-    /// standard error.
-    /// Per pixel and per row (a row's mean over its pixels): the mean of
-    /// `walks` walks' splat weights and its standard error (over walks:
-    /// one walk's positions fall in several pixels of a row, so the row's
-    /// error is not its pixels' taken as independent), and the largest
-    /// weight one walk brought a pixel.
+    /// standard error; the same per row (its pixels' mean, the error over
+    /// walks: one walk's positions fall in several pixels of a row, so
+    /// the row's error is not its pixels' taken as independent); and the
+    /// largest weight one walk brought a pixel.
     fn coverage(
         splatter: &GroundSplatter,
         camera: &Camera,
