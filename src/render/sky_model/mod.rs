@@ -168,11 +168,8 @@ impl ModelField {
     /// m and the weight f of node m + 1 (linear interpolation; clamped to
     /// the nodes' range).
     pub fn node_blend(wavelength_nm: f64) -> (usize, f64) {
-        let last = NODES - 1;
         let step_nm = node_wavelength(1) - node_wavelength(0);
-        let u = ((wavelength_nm - node_wavelength(0)) / step_nm).clamp(0.0, last as f64);
-        let m = (u as usize).min(last - 1);
-        (m, u - m as f64)
+        optics::split((wavelength_nm - node_wavelength(0)) / step_nm, NODES)
     }
 
     /// The atmosphere's tables the field reads.
@@ -388,9 +385,7 @@ fn aureole_shape(
 /// [`aureole_shape`] at view–sun cosine `nu`, linear in the ν table's
 /// index as the table's own look-ups are.
 fn shape_at(shape: &[Spectrum; MS_VIEW_ANGLES], nu: f64) -> Spectrum {
-    let x = optics::view_cosine_index(nu);
-    let a = (x as usize).min(MS_VIEW_ANGLES - 2);
-    let f = (x - a as f64).min(1.0);
+    let (a, f) = optics::split(optics::view_cosine_index(nu), MS_VIEW_ANGLES);
     std::array::from_fn(|n| shape[a][n] + f * (shape[a + 1][n] - shape[a][n]))
 }
 

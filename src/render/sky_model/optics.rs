@@ -370,8 +370,7 @@ impl Phases {
 
     pub(super) fn at(&self, mu: f64) -> (Spectrum, Spectrum) {
         let x = (0.5 * (1.0 - mu.clamp(-1.0, 1.0))).sqrt() * (PHASE_SAMPLES - 1) as f64;
-        let i = (x as usize).min(PHASE_SAMPLES - 2);
-        let f = x - i as f64;
+        let (i, f) = split(x, PHASE_SAMPLES);
         let ((ra, aa), (rb, ab)) = (&self.values[i], &self.values[i + 1]);
         (
             std::array::from_fn(|n| ra[n] + f * (rb[n] - ra[n])),
@@ -463,8 +462,9 @@ pub(super) fn view_cosine_index(nu: f64) -> f64 {
 }
 
 /// The entry below fractional index `x` of a table of `n` entries and the
-/// weight of the one above it, `x` clamped to the table.
-fn split(x: f64, n: usize) -> (usize, f64) {
+/// weight of the one above it, `x` clamped to the table: every linear
+/// look-up of the model's tables.
+pub(super) fn split(x: f64, n: usize) -> (usize, f64) {
     let x = x.clamp(0.0, (n - 1) as f64);
     let i = (x as usize).min(n - 2);
     (i, x - i as f64)
@@ -579,10 +579,9 @@ pub(super) struct SkyIrradiance {
 
 impl SkyIrradiance {
     pub(super) fn at(&self, mu_s: f64) -> Spectrum {
-        let x = zenith_index(mu_s).clamp(0.0, (MS_ZENITHS - 1) as f64);
-        let k = (x as usize).min(MS_ZENITHS - 2);
+        let (k, f) = split(zenith_index(mu_s), MS_ZENITHS);
         let (low, high) = (&self.values[k], &self.values[k + 1]);
-        geometric_spectrum(low, high, x - k as f64)
+        geometric_spectrum(low, high, f)
     }
 }
 

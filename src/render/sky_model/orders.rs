@@ -13,7 +13,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::optics::{
-    altitude_of, node_wavelength, view_cosine_index, view_cosine_of, view_zenith_cosine_of,
+    altitude_of, node_wavelength, split, view_cosine_index, view_cosine_of, view_zenith_cosine_of,
     zenith_cosine_of, MsTable, Optics, Phases, Quadrature, SkyIrradiance, Sources, Spectrum,
     GROUND_DIRECTIONS_HIGHER, GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_AT_CORE,
     MS_DIRECTIONS_AT_SUN, MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS,
@@ -185,8 +185,7 @@ impl MsTable {
                                         direct[1][n] += l[n] * pa[n];
                                     }
                                 }
-                                let a = (*index as usize).min(MS_VIEW_ANGLES - 2);
-                                let f = index - a as f64;
+                                let (a, f) = split(*index, MS_VIEW_ANGLES);
                                 let (lo, hi) = (&row[a], &row[a + 1]);
                                 let table = std::array::from_fn(|x| {
                                     std::array::from_fn(|n| lo[x][n] + f * (hi[x][n] - lo[x][n]))
