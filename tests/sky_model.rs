@@ -232,3 +232,63 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
         "{after} vs the model's {before}"
     );
 }
+
+/// A new atmosphere's model tables take seconds; the app's service gives
+/// them up when its scene is replaced meanwhile
+/// (`Renderer::with_model_unless`) and goes on to the new scene, whose
+/// model is its first frame; the replaced scene shows nothing.
+#[test]
+fn a_replaced_scene_gives_up_its_model_tables() {
+    let mut scene = Scene::preset("midday").unwrap();
+    scene.render.width = 32;
+    scene.render.height = 16;
+    scene.render.spp = 1;
+    // A haze of its own, made nowhere before (in memory or on disk).
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let mut new_air = scene.clone();
+    new_air.atmosphere.aerosol_amount *= 1.001 + 1e-12 * f64::from(nanos);
+    assert!(Renderer::with_model_unless(&new_air, &|| true)
+        .unwrap()
+        .is_none());
+    // Given up, nothing was kept: asked again, they are still to be made.
+    assert!(Renderer::with_model_unless(&new_air, &|| true)
+        .unwrap()
+        .is_none());
+    // A scene in error is an error, cancelled or not.
+    let mut invalid = new_air.clone();
+    invalid.render.width = 0;
+    assert!(Renderer::with_model_unless(&invalid, &|| true).is_err());
+    // Not cancelled, a renderer whose model is there.
+    let renderer = Renderer::with_model_unless(&scene, &|| false)
+        .unwrap()
+        .unwrap();
+    assert!(renderer
+        .sky_model_image()
+        .pixels
+        .iter()
+        .flatten()
+        .all(|v| v.is_finite()));
+
+    let service = RenderService::new();
+    let replaced = service.start(new_air);
+    let epoch = service.start(scene);
+    let started = Instant::now();
+    let mut first = None;
+    while started.elapsed() < Duration::from_mins(1) {
+        if let Some(frame) = service.latest() {
+            assert_ne!(frame.epoch, replaced, "a replaced scene's frame");
+            first.get_or_insert(frame.spp);
+            if frame.epoch == epoch && frame.finished {
+                break;
+            }
+        }
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    assert_eq!(first, Some(0), "the model first");
+    assert!(service
+        .latest()
+        .is_some_and(|f| f.epoch == epoch && f.finished));
+}

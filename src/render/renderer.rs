@@ -145,50 +145,26 @@ pub struct PassStats {
 impl Renderer {
     /// The renderer of `scene`, or why the scene is invalid.
     pub fn new(scene: &Scene) -> Result<Self, SceneError> {
-        scene.validate()?;
-        let atmosphere = Atmosphere::new(scene.atmosphere.clone());
-        let medium = Medium::new(&atmosphere);
-        let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
-        let cmf = ColourMatching::get(scene.render.observer);
-        let observer_m = DVec3::new(
-            0.0,
-            0.0,
-            scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
+        Ok(Unfinished::new(scene)?.finish())
+    }
+
+    /// [`Self::new`] for a caller that shows the sky model first (the
+    /// app's preview): the model's tables
+    /// ([`super::sky_model::ModelTables::shared_unless`]) made before the
+    /// renderer's own, and `Ok(None)` where `cancelled()` returns true
+    /// while they are being made — a new atmosphere's tables take
+    /// seconds, and a scene replaced meanwhile need not wait for them.
+    pub fn with_model_unless(
+        scene: &Scene,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Result<Option<Self>, SceneError> {
+        let unfinished = Unfinished::new(scene)?;
+        let tables = super::sky_model::ModelTables::shared_unless(
+            &unfinished.medium,
+            &unfinished.lane_table,
+            cancelled,
         );
-        let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
-        // From above the air (where the scene refuses splatting when asked
-        // for) or without circles (the sun at the zenith or nadir), the
-        // camera's branches keep every order.
-        let in_air = scene.observer.altitude_m < scene.atmosphere.top_altitude_m;
-        let circles = in_air && circles::has_circles(observer_m, sun_direction);
-        let ground_density = atmosphere.air_number_density_m3(0.0);
-        let density_over_ground = if ground_density > 0.0 {
-            atmosphere.air_number_density_m3(scene.observer.altitude_m) / ground_density
-        } else {
-            0.0
-        };
-        let plan = TechniquePlan::new(
-            &scene.render.integrator,
-            &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles)
-                .with_observer_density(density_over_ground)
-                .with_observer_in_air(in_air),
-        );
-        let lane_table = LaneTable::new(&medium, cmf.range_nm(), solar_source(scene));
-        Ok(Self {
-            tables: Tables::new(&medium, &plan, &lane_table, observer_m, sun_direction),
-            mirror: mirror_pairs(scene),
-            halves: mirror_halves(scene),
-            draft_plan: plan.first_pass(),
-            plan,
-            observer_m,
-            sun_direction,
-            cmf,
-            lane_table,
-            scene: scene.clone(),
-            atmosphere,
-            medium,
-            camera,
-        })
+        Ok(tables.map(|_| unfinished.finish()))
     }
 
     /// The scene's techniques, every choice made.
@@ -696,6 +672,96 @@ impl Renderer {
             splat_paths,
             discarded,
             splat_discarded,
+        }
+    }
+}
+
+/// A renderer but for its tables: the scene checked, its atmosphere,
+/// medium, camera, plan and wavelengths.
+struct Unfinished {
+    scene: Scene,
+    atmosphere: Atmosphere,
+    medium: Medium,
+    camera: Camera,
+    cmf: &'static ColourMatching,
+    observer_m: DVec3,
+    sun_direction: DVec3,
+    plan: TechniquePlan,
+    lane_table: LaneTable,
+}
+
+impl Unfinished {
+    fn new(scene: &Scene) -> Result<Self, SceneError> {
+        scene.validate()?;
+        let atmosphere = Atmosphere::new(scene.atmosphere.clone());
+        let medium = Medium::new(&atmosphere);
+        let camera = Camera::new(&scene.camera, scene.render.width, scene.render.height);
+        let cmf = ColourMatching::get(scene.render.observer);
+        let observer_m = DVec3::new(
+            0.0,
+            0.0,
+            scene.atmosphere.planet_radius_m + scene.observer.altitude_m,
+        );
+        let sun_direction = direction_from_az_el(scene.sun.azimuth_deg, scene.sun.elevation_deg);
+        // From above the air (where the scene refuses splatting when asked
+        // for) or without circles (the sun at the zenith or nadir), the
+        // camera's branches keep every order.
+        let in_air = scene.observer.altitude_m < scene.atmosphere.top_altitude_m;
+        let circles = in_air && circles::has_circles(observer_m, sun_direction);
+        let ground_density = atmosphere.air_number_density_m3(0.0);
+        let density_over_ground = if ground_density > 0.0 {
+            atmosphere.air_number_density_m3(scene.observer.altitude_m) / ground_density
+        } else {
+            0.0
+        };
+        let plan = TechniquePlan::new(
+            &scene.render.integrator,
+            &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles)
+                .with_observer_density(density_over_ground)
+                .with_observer_in_air(in_air),
+        );
+        let lane_table = LaneTable::new(&medium, cmf.range_nm(), solar_source(scene));
+        Ok(Self {
+            scene: scene.clone(),
+            atmosphere,
+            medium,
+            camera,
+            cmf,
+            observer_m,
+            sun_direction,
+            plan,
+            lane_table,
+        })
+    }
+
+    /// The renderer, its tables made (empty until first used, but for the
+    /// model's: [`Tables::new`]).
+    fn finish(self) -> Renderer {
+        let Self {
+            scene,
+            atmosphere,
+            medium,
+            camera,
+            cmf,
+            observer_m,
+            sun_direction,
+            plan,
+            lane_table,
+        } = self;
+        Renderer {
+            tables: Tables::new(&medium, &plan, &lane_table, observer_m, sun_direction),
+            mirror: mirror_pairs(&scene),
+            halves: mirror_halves(&scene),
+            draft_plan: plan.first_pass(),
+            plan,
+            observer_m,
+            sun_direction,
+            cmf,
+            lane_table,
+            scene,
+            atmosphere,
+            medium,
+            camera,
         }
     }
 }

@@ -213,14 +213,17 @@ fn worker_loop(shared: &Shared) {
                 state = shared.wake.wait(state).unwrap();
             }
         };
-        let renderer = match Renderer::new(&scene) {
-            Ok(r) => r,
+        let stale = || shared.epoch.load(Ordering::SeqCst) != epoch;
+        // A new atmosphere's model tables take seconds: a scene replaced
+        // meanwhile (a slider dragged) gives them up for the next one.
+        let renderer = match Renderer::with_model_unless(&scene, &stale) {
+            Ok(Some(r)) => r,
+            Ok(None) => continue,
             Err(e) => {
                 shared.state.lock().unwrap().error = Some((epoch, e.to_string()));
                 continue;
             }
         };
-        let stale = || shared.epoch.load(Ordering::SeqCst) != epoch;
         let start = Instant::now();
         // The first frame: the approximate model, in tens of milliseconds.
         let mut preview = Preview::new(&renderer);

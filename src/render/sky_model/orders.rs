@@ -28,6 +28,10 @@ use crate::render::medium::{Lanes, Medium, SpectralLanes, LANES};
 /// view sums'.
 type ZenithEntries = (Vec<[Spectrum; 2]>, Vec<[[Spectrum; 2]; 2]>);
 
+/// Whether a build of the tables is to be given up: asked once per table
+/// and solar zenith (a few tens of milliseconds of work apart).
+type Cancelled<'a> = &'a (dyn Fn() -> bool + Sync);
+
 impl MsTable {
     /// The light scattered once more than `previous`'s: from the sunlight
     /// scattered once (and the sunlit ground) without it, else from the
@@ -42,7 +46,8 @@ impl MsTable {
         optics: &Optics<'_>,
         previous: Option<(&MsTable, &SkyIrradiance)>,
         quadrature: &Quadrature,
-    ) -> Self {
+        cancelled: Cancelled<'_>,
+    ) -> Option<Self> {
         let medium = optics.medium;
         let (planet_radius_m, top_m) = (
             medium.planet_radius_m,
@@ -53,6 +58,9 @@ impl MsTable {
         let per_zenith: Vec<ZenithEntries> = (0..MS_ZENITHS)
             .into_par_iter()
             .map(|k| {
+                if cancelled() {
+                    return None;
+                }
                 let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
                 // Views at ν from the sun, in the plane of the sun and the
                 // zenith and across it, each weighted ½.
@@ -201,9 +209,9 @@ impl MsTable {
                     values.extend(row);
                     factors.extend(f);
                 }
-                (values, factors)
+                Some((values, factors))
             })
-            .collect();
+            .collect::<Option<_>>()?;
         // Reordered to (altitude, zenith, ν) and (altitude, zenith, μ_v).
         let cell = |index: usize, rows: usize| {
             let (cell, a) = (index / rows, index % rows);
@@ -230,7 +238,7 @@ impl MsTable {
             zenith_factors: Vec::new(),
         };
         table.update_factors();
-        table
+        Some(table)
     }
 
     /// Every number the orders add up: the ν table's, then the zenith
@@ -271,7 +279,12 @@ impl SkyIrradiance {
     /// the light that `ms` scatters toward the ground, summed over the
     /// upward directions of `quadrature` (the once-scattered light with
     /// its cells' phase functions: the aureole is as narrow as there).
-    fn scattered(optics: &Optics<'_>, ms: Option<&MsTable>, quadrature: &Quadrature) -> Self {
+    fn scattered(
+        optics: &Optics<'_>,
+        ms: Option<&MsTable>,
+        quadrature: &Quadrature,
+        cancelled: Cancelled<'_>,
+    ) -> Option<Self> {
         let medium = optics.medium;
         // Looking up from the ground, no view ray ends on it.
         let sources = Sources {
@@ -288,6 +301,9 @@ impl SkyIrradiance {
         let values = (0..MS_ZENITHS)
             .into_par_iter()
             .map(|k| {
+                if cancelled() {
+                    return None;
+                }
                 let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
                 let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1.0);
                 let mut e = [0.0; NODES];
@@ -303,10 +319,10 @@ impl SkyIrradiance {
                         e[n] += radiance[n] * dir.z * weight;
                     }
                 }
-                e
+                Some(e)
             })
-            .collect();
-        Self { values }
+            .collect::<Option<_>>()?;
+        Some(Self { values })
     }
 }
 
@@ -370,7 +386,10 @@ fn tail_after(older: f64, before: f64, last: f64, floor: f64) -> f64 {
     last * (sum + term * geometric(ratio))
 }
 
-fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
+fn scattering_orders(
+    optics: &Optics<'_>,
+    cancelled: Cancelled<'_>,
+) -> Option<(MsTable, SkyIrradiance)> {
     // J₂ from the once-scattered light; E₁ of the once-scattered sky.
     let cells = |count: usize| optics.phases.averaged_over_cells(count);
     let (core_cells, at_sun_cells, near_cells, far_cells) = (
@@ -413,16 +432,16 @@ fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
     // The orders past the first reach the ground as their tables' light,
     // already scattered: no phase function is read there.
     let higher_up = Quadrature::even(GROUND_DIRECTIONS_HIGHER, optics.phases);
-    let mut table = MsTable::scattered(optics, None, &first);
-    let mut sky = SkyIrradiance::scattered(optics, None, &first_up);
+    let mut table = MsTable::scattered(optics, None, &first, cancelled)?;
+    let mut sky = SkyIrradiance::scattered(optics, None, &first_up, cancelled)?;
     let (mut psi, mut irradiance) = (table.clone(), sky.clone());
     let (mut last_table, mut last_sky) = (table.clone(), sky.clone());
     let (mut older_table, mut older_sky) = (table.clone(), sky.clone());
     for _ in 2..ORDERS {
         // E_n from J_n, then J_{n+1} from L_n (J_n and the ground lit by
         // E_{n−1}).
-        let next_sky = SkyIrradiance::scattered(optics, Some(&table), &higher_up);
-        let next_table = MsTable::scattered(optics, Some((&table, &sky)), &higher);
+        let next_sky = SkyIrradiance::scattered(optics, Some(&table), &higher_up, cancelled)?;
+        let next_table = MsTable::scattered(optics, Some((&table, &sky)), &higher, cancelled)?;
         for (sum, v) in psi.numbers_mut().zip(next_table.numbers()) {
             *sum += v;
         }
@@ -463,7 +482,7 @@ fn scattering_orders(optics: &Optics<'_>) -> (MsTable, SkyIrradiance) {
     // The sums only made the factors; the tables read from disk have
     // none either.
     psi.zenith_sums = Vec::new();
-    (psi, irradiance)
+    Some((psi, irradiance))
 }
 
 /// The model's tables for one atmosphere: its phase functions at the
@@ -484,24 +503,31 @@ impl ModelTables {
     /// The tables of `medium` at the wavelengths of `lane_table`'s
     /// constants.
     pub fn new(medium: &Medium, lane_table: &LaneTable) -> Self {
-        Self::made(medium, lane_table, fingerprint(medium, lane_table), None)
+        let key = fingerprint(medium, lane_table);
+        Self::made(medium, lane_table, key, None, &|| false)
+            .expect("tables never cancelled are made")
     }
 
     /// [`Self::new`], its fingerprint already taken; Ψ and the sky's
     /// irradiance `stored` where they were read back ([`stored::load`]).
+    /// `None` once `cancelled()` returns true while they are being made
+    /// (it is asked once per table and solar zenith).
     fn made(
         medium: &Medium,
         lane_table: &LaneTable,
         fingerprint: Vec<f64>,
         stored: Option<(MsTable, SkyIrradiance)>,
-    ) -> Self {
+        cancelled: Cancelled<'_>,
+    ) -> Option<Self> {
         let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
         let groups: Vec<SpectralLanes> = nodes
             .chunks(LANES)
             .map(|w| lane_table.lanes(Lanes::from_fn(|j| w[j]), LANES, medium))
             .collect();
         let phases = Phases::new(medium, &groups);
-        let (ms, sky) = stored.unwrap_or_else(|| {
+        let (ms, sky) = if let Some(read) = stored {
+            read
+        } else {
             let optics = Optics {
                 medium,
                 groups: &groups,
@@ -509,15 +535,15 @@ impl ModelTables {
                 // Each table sets its own sun per solar zenith.
                 sun_direction: DVec3::Z,
             };
-            scattering_orders(&optics)
-        });
-        Self {
+            scattering_orders(&optics, cancelled)?
+        };
+        Some(Self {
             groups,
             phases,
             ms,
             sky,
             fingerprint,
-        }
+        })
     }
 
     /// The tables of `medium` at `lane_table`'s wavelengths, made anew or,
@@ -525,7 +551,22 @@ impl ModelTables {
     /// same coefficients at the tables' altitudes, phase functions and
     /// ground albedo at every node), those.
     pub fn shared(medium: &Medium, lane_table: &LaneTable) -> Arc<Self> {
-        SHARED.get(medium, lane_table)
+        SHARED
+            .get(medium, lane_table, &|| false)
+            .expect("tables never cancelled are made")
+    }
+
+    /// [`Self::shared`], given up (`None`, nothing kept) once `cancelled()`
+    /// returns true while the tables are being made: a new atmosphere's
+    /// take seconds, and the app's scene may have changed again meanwhile.
+    /// Tables kept in memory or on disk are returned whatever `cancelled`
+    /// says.
+    pub fn shared_unless(
+        medium: &Medium,
+        lane_table: &LaneTable,
+        cancelled: &(dyn Fn() -> bool + Sync),
+    ) -> Option<Arc<Self>> {
+        SHARED.get(medium, lane_table, cancelled)
     }
 }
 
@@ -568,12 +609,17 @@ impl TableCache {
         self.folder.get_or_init(stored::default_folder).as_ref()
     }
 
-    /// See [`ModelTables::shared`].
-    fn get(&self, medium: &Medium, lane_table: &LaneTable) -> Arc<ModelTables> {
+    /// See [`ModelTables::shared_unless`].
+    fn get(
+        &self,
+        medium: &Medium,
+        lane_table: &LaneTable,
+        cancelled: Cancelled<'_>,
+    ) -> Option<Arc<ModelTables>> {
         let key = fingerprint(medium, lane_table);
         let mut last = lock(&self.last);
         if let Some(tables) = last.as_ref().filter(|t| t.fingerprint == key) {
-            return Arc::clone(tables);
+            return Some(Arc::clone(tables));
         }
         let folder = self.folder().cloned();
         let radii = (
@@ -582,7 +628,7 @@ impl TableCache {
         );
         let read = folder.as_ref().and_then(|f| stored::load(f, &key, radii));
         let made_here = read.is_none();
-        let tables = Arc::new(ModelTables::made(medium, lane_table, key, read));
+        let tables = Arc::new(ModelTables::made(medium, lane_table, key, read, cancelled)?);
         *last = Some(Arc::clone(&tables));
         if let Some(folder) = folder.filter(|_| made_here) {
             // Beside the render: its first frame does not wait on the disk.
@@ -596,7 +642,7 @@ impl TableCache {
                 let _ = previous.join();
             }
         }
-        tables
+        Some(tables)
     }
 
     /// Waits for the last tables' write to disk, if one is under way.
@@ -724,7 +770,7 @@ mod tests {
         );
         let key = fingerprint(medium, lanes);
         let first_cache = TableCache::in_folder(Some(folder.path().to_path_buf()));
-        let made = first_cache.get(medium, lanes);
+        let made = first_cache.get(medium, lanes, &|| false).unwrap();
         first_cache.wait_for_writes();
         let files: Vec<_> = std::fs::read_dir(folder.path())
             .unwrap()
@@ -732,7 +778,9 @@ mod tests {
             .collect();
         assert_eq!(files.len(), 1, "one file per atmosphere: {files:?}");
         // Read back, as the next process would.
-        let read = TableCache::in_folder(Some(folder.path().to_path_buf())).get(medium, lanes);
+        let read = TableCache::in_folder(Some(folder.path().to_path_buf()))
+            .get(medium, lanes, &|| false)
+            .unwrap();
         assert!(!Arc::ptr_eq(&made, &read));
         assert!(same_numbers(&made, &read));
         assert!(stored::load(folder.path(), &key, radii).is_some());
@@ -756,14 +804,20 @@ mod tests {
         // Damaged, the tables are made anew (the same numbers) and the
         // file written again.
         let cache = TableCache::in_folder(Some(folder.path().to_path_buf()));
-        assert!(same_numbers(&made, &cache.get(medium, lanes)));
+        assert!(same_numbers(
+            &made,
+            &cache.get(medium, lanes, &|| false).unwrap()
+        ));
         cache.wait_for_writes();
         assert!(stored::load(folder.path(), &key, radii).is_some());
         // A "folder" that is a file: no file kept, the tables all the same.
         let blocked = folder.path().join("blocked");
         std::fs::write(&blocked, b"").unwrap();
         let cache = TableCache::in_folder(Some(blocked.join("sky-model")));
-        assert!(same_numbers(&made, &cache.get(medium, lanes)));
+        assert!(same_numbers(
+            &made,
+            &cache.get(medium, lanes, &|| false).unwrap()
+        ));
         cache.wait_for_writes();
         assert_eq!(std::fs::read_dir(folder.path()).unwrap().count(), 2);
     }
@@ -777,7 +831,9 @@ mod tests {
         let cache = TableCache::in_folder(None);
         let tables = |scene: &Scene| {
             let renderer = Renderer::new(scene).unwrap();
-            cache.get(&renderer.medium, &renderer.lane_table)
+            cache
+                .get(&renderer.medium, &renderer.lane_table, &|| false)
+                .unwrap()
         };
         let sunset = Scene::preset("sunset").unwrap();
         let first = tables(&sunset);
@@ -794,5 +850,28 @@ mod tests {
         let again = tables(&sunset);
         assert!(!Arc::ptr_eq(&other, &again));
         assert!(again.fingerprint == first.fingerprint);
+
+        // A build given up keeps nothing and leaves the last tables kept;
+        // it stops within the table it was building when asked.
+        let hazier_renderer = Renderer::new(&hazier).unwrap();
+        let unless = |cancelled: Cancelled<'_>| {
+            cache.get(
+                &hazier_renderer.medium,
+                &hazier_renderer.lane_table,
+                cancelled,
+            )
+        };
+        assert!(unless(&|| true).is_none());
+        let asked = std::sync::atomic::AtomicUsize::new(0);
+        let after_forty = || asked.fetch_add(1, Ordering::SeqCst) >= 40;
+        assert!(unless(&after_forty).is_none());
+        let asked = asked.load(Ordering::SeqCst);
+        assert!((41..=40 + MS_ZENITHS).contains(&asked), "{asked}");
+        let kept = lock(&cache.last).clone().unwrap();
+        assert!(Arc::ptr_eq(&kept, &again));
+        // Tables already kept are returned, cancelled or not.
+        let renderer = Renderer::new(&sunset).unwrap();
+        let kept = cache.get(&renderer.medium, &renderer.lane_table, &|| true);
+        assert!(Arc::ptr_eq(&kept.unwrap(), &again));
     }
 }
