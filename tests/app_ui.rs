@@ -921,3 +921,29 @@ fn false_colour_shows_log_luminance_with_a_colour_bar() {
     let diff = mean_difference(&before, &after, view);
     assert!(diff > 20.0, "the view barely changed: {diff}");
 }
+
+/// A new atmosphere's first frame waits seconds on its sky-model tables;
+/// the status bar says so meanwhile, and not once the frame is there.
+#[test]
+fn a_new_atmosphere_says_it_is_making_its_tables() {
+    let notice = "making the sky model's tables for this atmosphere…";
+    let mut harness = harness(tiny_app("midday"));
+    wait_for_current_frame(&mut harness);
+    assert!(harness.query_by_label(notice).is_none());
+    // A haze of its own: its tables made nowhere before (memory or disk).
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .unwrap()
+        .subsec_nanos();
+    let amount = harness.state().state().scene().atmosphere.aerosol_amount
+        * (1.001 + 1e-12 * f64::from(nanos));
+    harness.state_mut().state_mut().set_aerosol_amount(amount);
+    step_until(&mut harness, "the tables' notice", |app| {
+        app.making_tables()
+    });
+    harness.run_steps(2);
+    assert!(harness.query_by_label(notice).is_some());
+    wait_for_current_frame(&mut harness);
+    harness.run_steps(2);
+    assert!(harness.query_by_label(notice).is_none());
+}

@@ -47,6 +47,10 @@ const RENDER_POLL: Duration = Duration::from_millis(15);
 /// times per pass, so that redrawing the window (which is not free on a
 /// software renderer) leaves the CPU to the path tracer.
 const REFINE_POLL_MAX: Duration = Duration::from_millis(100);
+/// The status bar says that a new atmosphere's sky-model tables are being
+/// made once the first frame has waited this long on them: tables kept
+/// take a millisecond to look up, and a notice for that would flicker.
+const TABLES_NOTICE_AFTER: Duration = Duration::from_millis(250);
 /// How often the UI refreshes while an export or a file task runs.
 const TASK_POLL: Duration = Duration::from_millis(100);
 /// Results that background threads send to the UI.
@@ -743,6 +747,15 @@ impl SkyApp {
         });
     }
 
+    /// Whether the current scene's first frame has waited a quarter of a
+    /// second or more on the render service's making of a new
+    /// atmosphere's sky-model tables.
+    pub fn making_tables(&self) -> bool {
+        self.pending_since
+            .is_some_and(|since| since.elapsed() >= TABLES_NOTICE_AFTER)
+            && self.service.is_preparing()
+    }
+
     /// Draw the whole app into `ui` (the window's root).
     pub fn show(&mut self, ui: &mut egui::Ui) {
         let ctx = ui.ctx().clone();
@@ -754,6 +767,7 @@ impl SkyApp {
         self.poll_screenshot(&ctx);
 
         let rendering = self.is_rendering();
+        let making_tables = self.making_tables();
         let render_time = self.render_time();
         egui::Panel::bottom("status").show(ui, |ui| {
             StatusBar {
@@ -761,6 +775,7 @@ impl SkyApp {
                 frame: self.frame.as_deref(),
                 frame_is_draft: self.frame_is_draft,
                 rendering,
+                making_tables,
                 render_time,
                 pass_time: self.pass_time,
                 latency: (self.latency.last, self.full_latency.last),

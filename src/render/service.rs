@@ -101,6 +101,8 @@ struct State {
     shutdown: bool,
     frame: Option<Arc<Frame>>,
     error: Option<(u64, String)>,
+    /// The epoch whose sky-model tables are being made or looked up.
+    preparing: Option<u64>,
 }
 
 struct Shared {
@@ -175,6 +177,14 @@ impl RenderService {
         self.shared.state.lock().unwrap().frame.clone()
     }
 
+    /// Whether the current scene's sky-model tables are being made (or
+    /// looked up: tables kept take a millisecond, a new atmosphere's a few
+    /// seconds, and its first frame waits on them).
+    pub fn is_preparing(&self) -> bool {
+        let state = self.shared.state.lock().unwrap();
+        state.preparing == Some(self.epoch())
+    }
+
     /// An error from building the current scene, if any.
     pub fn error(&self) -> Option<String> {
         let state = self.shared.state.lock().unwrap();
@@ -216,7 +226,10 @@ fn worker_loop(shared: &Shared) {
         let stale = || shared.epoch.load(Ordering::SeqCst) != epoch;
         // A new atmosphere's model tables take seconds: a scene replaced
         // meanwhile (a slider dragged) gives them up for the next one.
-        let renderer = match Renderer::with_model_unless(&scene, &stale) {
+        shared.state.lock().unwrap().preparing = Some(epoch);
+        let made = Renderer::with_model_unless(&scene, &stale);
+        shared.state.lock().unwrap().preparing = None;
+        let renderer = match made {
             Ok(Some(r)) => r,
             Ok(None) => continue,
             Err(e) => {

@@ -20,6 +20,9 @@ pub struct StatusBar<'a> {
     pub frame_is_draft: bool,
     /// Whether the preview is still refining.
     pub rendering: bool,
+    /// Whether the current scene's first frame waits on a new
+    /// atmosphere's sky-model tables.
+    pub making_tables: bool,
     /// Render time of the image on screen.
     pub render_time: Duration,
     /// How long the latest full-size pass took.
@@ -42,6 +45,14 @@ impl StatusBar<'_> {
                 "done"
             };
             ui.label(RichText::new(state).strong());
+            if self.making_tables {
+                ui.label("making the sky model's tables for this atmosphere…")
+                    .on_hover_text(
+                        "A new atmosphere's tables take a few seconds on two cores; \
+                         they are then kept while only the sun, the observer, the \
+                         camera or the size change, and on disk for the next start",
+                    );
+            }
             match self.frame {
                 Some(f) => {
                     let spp = if self.frame_is_draft {
