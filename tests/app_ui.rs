@@ -3,6 +3,8 @@
 //! the export writes the same EXR as the CLI, errors are shown and leave no
 //! file behind. Tiny preview sizes and sample counts keep them fast.
 
+mod common;
+
 use std::path::Path;
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
@@ -930,13 +932,7 @@ fn a_new_atmosphere_says_it_is_making_its_tables() {
     let mut harness = harness(tiny_app("midday"));
     wait_for_current_frame(&mut harness);
     assert!(harness.query_by_label(notice).is_none());
-    // A haze of its own: its tables made nowhere before (memory or disk).
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
-    let amount = harness.state().state().scene().atmosphere.aerosol_amount
-        * (1.001 + 1e-12 * f64::from(nanos));
+    let amount = common::fresh_haze(harness.state().state().scene().atmosphere.aerosol_amount);
     harness.state_mut().state_mut().set_aerosol_amount(amount);
     step_until(&mut harness, "the tables' notice", |app| {
         app.making_tables()

@@ -2,6 +2,8 @@
 //! (`render::sky_model`) against the path tracer it stands in for, and the
 //! preview service that shows it first and blends it out.
 
+mod common;
+
 use std::sync::atomic::AtomicBool;
 use std::time::{Duration, Instant};
 
@@ -243,13 +245,8 @@ fn a_replaced_scene_gives_up_its_model_tables() {
     scene.render.width = 32;
     scene.render.height = 16;
     scene.render.spp = 1;
-    // A haze of its own, made nowhere before (in memory or on disk).
-    let nanos = std::time::SystemTime::now()
-        .duration_since(std::time::UNIX_EPOCH)
-        .unwrap()
-        .subsec_nanos();
     let mut new_air = scene.clone();
-    new_air.atmosphere.aerosol_amount *= 1.001 + 1e-12 * f64::from(nanos);
+    new_air.atmosphere.aerosol_amount = common::fresh_haze(new_air.atmosphere.aerosol_amount);
     assert!(Renderer::with_model_unless(&new_air, &|| true)
         .unwrap()
         .is_none());

@@ -737,31 +737,27 @@ impl Unfinished {
     /// The renderer, its tables made (empty until first used, but for the
     /// model's: [`Tables::new`]).
     fn finish(self) -> Renderer {
-        let Self {
-            scene,
-            atmosphere,
-            medium,
-            camera,
-            cmf,
-            observer_m,
-            sun_direction,
-            plan,
-            lane_table,
-        } = self;
+        // Fields are initialised in the order written: the borrows first.
         Renderer {
-            tables: Tables::new(&medium, &plan, &lane_table, observer_m, sun_direction),
-            mirror: mirror_pairs(&scene),
-            halves: mirror_halves(&scene),
-            draft_plan: plan.first_pass(),
-            plan,
-            observer_m,
-            sun_direction,
-            cmf,
-            lane_table,
-            scene,
-            atmosphere,
-            medium,
-            camera,
+            tables: Tables::new(
+                &self.medium,
+                &self.plan,
+                &self.lane_table,
+                self.observer_m,
+                self.sun_direction,
+            ),
+            mirror: mirror_pairs(&self.scene),
+            halves: mirror_halves(&self.scene),
+            draft_plan: self.plan.first_pass(),
+            plan: self.plan,
+            observer_m: self.observer_m,
+            sun_direction: self.sun_direction,
+            cmf: self.cmf,
+            lane_table: self.lane_table,
+            scene: self.scene,
+            atmosphere: self.atmosphere,
+            medium: self.medium,
+            camera: self.camera,
         }
     }
 }
