@@ -115,6 +115,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("ground_control=false", |s| {
             s.render.integrator.ground_control = Some(false);
         }),
+        ("splat_transmittance_table=false", |s| {
+            s.render.integrator.splat_transmittance_table = false;
+        }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
         }),

@@ -302,6 +302,9 @@ pub struct TechniquePlan {
     /// with a limit on the orders, which it would mix, nor with the
     /// model's own cells as the control, which hold the ground's).
     pub ground_control: bool,
+    /// The splats' transmittance from the observer by its table, a random
+    /// share corrected ([`crate::render::observer_depths`]).
+    pub splat_transmittance_table: bool,
     /// How pixel samples draw their first random numbers.
     pub sampler: Sampler,
     /// The first pass's weight in the film's average (1 for later ones).
@@ -377,6 +380,7 @@ impl TechniquePlan {
                 .unwrap_or(conditions.observer_in_air && conditions.haze_fits_model)
                 && options.max_scattering_order.is_none()
                 && !(control_variate && options.control_source == Some(ControlSource::Model)),
+            splat_transmittance_table: options.splat_transmittance_table,
             sampler: options.sampler,
             draft_weight: row.draft_weight,
         }

@@ -118,6 +118,13 @@ pub struct IntegratorOptions {
     /// the look-ups cost more than they save) in haze the model holds
     /// ([`super::GROUND_CONTROL_MAX_AEROSOL_DEPTH`]).
     pub ground_control: Option<bool>,
+    /// The splats' transmittance from the observer (`circle_splatting`,
+    /// `ground_splatting`) read from a table of the observer's rays over
+    /// their direction and length, a random sixteenth of them corrected by
+    /// the unbiased estimate, which keeps the sum unbiased
+    /// ([`crate::render::observer_depths`]); `false`: every splat takes the
+    /// unbiased estimate itself.
+    pub splat_transmittance_table: bool,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -149,6 +156,7 @@ impl Default for IntegratorOptions {
             circle_splatting: None,
             ground_splatting: None,
             ground_control: None,
+            splat_transmittance_table: true,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }

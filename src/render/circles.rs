@@ -58,10 +58,10 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::camera::Camera;
-use super::columns::FixedStart;
 use super::guide::SkyGuide;
 use super::integrator::Integrator;
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
+use super::observer_depths::ObserverRays;
 use crate::rng::Rng;
 
 pub use super::circle_geometry::SPLATS_PER_WALK;
@@ -166,9 +166,9 @@ pub struct CircleSplatter {
     /// and of each learned cell.
     prior_bins: Vec<f64>,
     prior_cells: Vec<f64>,
-    /// The column table's look-ups at the observer, where every splat's
+    /// The look-ups of the rays from the observer, where every splat's
     /// ray to the camera starts.
-    observer: FixedStart,
+    observer: ObserverRays,
 }
 
 /// The points' density learned from the splats of a render's passes so
@@ -264,7 +264,7 @@ impl CircleSplatter {
             }))
             .collect();
         let lanes = SpectralLanes::new(Lanes::from([TABLE_WAVELENGTH_NM; LANES]), 1, medium, true);
-        let observer = FixedStart::new(medium.column_table(), observer_m);
+        let observer = ObserverRays::new(medium, observer_m);
         let up = observer_m.normalize();
         let mass: Vec<f64> = (0..TABLE_RHO_BINS * TABLE_PHI_BINS)
             .into_par_iter()
@@ -297,7 +297,7 @@ impl CircleSplatter {
                         continue;
                     }
                     let Some(tr) =
-                        integrator.transmittance_from(&observer, dir, t, &lanes, &mut rng)
+                        integrator.transmittance_from(observer.start(), dir, t, &lanes, &mut rng)
                     else {
                         continue;
                     };
@@ -579,7 +579,7 @@ impl CircleSplatter {
             {
                 continue;
             }
-            let Some(tr) = integrator.transmittance_from(&self.observer, dir, t, lanes, rng) else {
+            let Some(tr) = self.observer.transmittance(integrator, dir, t, lanes, rng) else {
                 continue;
             };
             let weight = r * r * theta.sin() * per_sr / (t * t * point_density * position_density);

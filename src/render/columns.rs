@@ -246,7 +246,7 @@ impl ColumnTable {
 
     /// The profiles at altitude `h_m`, interpolated exactly as
     /// [`Medium::densities`] does.
-    fn profiles(&self, h_m: f64) -> Profiles {
+    pub(super) fn profiles(&self, h_m: f64) -> Profiles {
         let x = (h_m / NODE_STEP_M).max(0.0);
         let i = (x as usize).min(self.nodes.len() - 2);
         let f = (x - i as f64).min(1.0);

@@ -52,11 +52,11 @@ use rayon::prelude::*;
 
 use super::camera::Camera;
 use super::circle_geometry::{cauchy_scale, Arc, SunAxis};
-use super::columns::FixedStart;
 use super::film_spectral::{Splat, SplatLanes};
 use super::guide::SkyGuide;
 use super::integrator::Integrator;
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
+use super::observer_depths::ObserverRays;
 use crate::rng::Rng;
 
 /// Positions along a circle per bounce: a position costs a transmittance
@@ -154,8 +154,8 @@ pub struct GroundSplatter {
     /// in view had weight (then the uniform density alone).
     bins: Vec<f64>,
     cdf: Vec<f64>,
-    /// The column table's look-ups at the observer.
-    observer: FixedStart,
+    /// The look-ups of the rays from the observer.
+    observer: ObserverRays,
 }
 
 impl GroundSplatter {
@@ -202,7 +202,7 @@ impl GroundSplatter {
             edges,
             bins: Vec::new(),
             cdf: Vec::new(),
-            observer: FixedStart::new(medium.column_table(), observer_m),
+            observer: ObserverRays::new(medium, observer_m),
         };
         let lanes = SpectralLanes::new(Lanes::from([TABLE_WAVELENGTH_NM; LANES]), 1, medium, true);
         // Per bin: the positions' integral (and with the guide's light) at
@@ -231,7 +231,7 @@ impl GroundSplatter {
                                     continue;
                                 };
                                 let Some(tr) = integrator.transmittance_from(
-                                    &splatter.observer,
+                                    splatter.observer.start(),
                                     landing.dir,
                                     landing.t_m * (1.0 - SHORT_OF_GROUND),
                                     &lanes,
@@ -428,7 +428,8 @@ impl GroundSplatter {
         for landing in landings.into_iter().flatten() {
             let t_short = landing.t_m * (1.0 - SHORT_OF_GROUND);
             let Some(tr) =
-                integrator.transmittance_from(&self.observer, landing.dir, t_short, lanes, rng)
+                self.observer
+                    .transmittance(integrator, landing.dir, t_short, lanes, rng)
             else {
                 continue;
             };

@@ -32,6 +32,7 @@ pub mod lanes;
 pub mod layers;
 pub mod medium;
 pub mod memory;
+pub mod observer_depths;
 pub mod parts;
 pub mod preview;
 pub mod probe;
