@@ -98,13 +98,14 @@ pub struct IntegratorOptions {
     /// symmetry: the camera's own paths keep single scattering and the
     /// ground's light, and paths started anywhere in the visible air carry
     /// the rest to the pixels of 96 points on their start's circle about
-    /// the sun's axis. Needs `camera_samples` > 0, `next_event_estimation`
-    /// and the observer inside the atmosphere. Unset: the regime table's.
+    /// the sun's axis (up to 192 in finer images). Needs
+    /// `camera_samples` > 0, `next_event_estimation` and the observer
+    /// inside the atmosphere. Unset: the regime table's.
     pub circle_splatting: Option<bool>,
     /// The skylight the ground reflects splatted along the same circles:
     /// the camera's rays that meet the ground keep its direct sunlight, and
     /// bounces from points anywhere on the visible ground carry the rest to
-    /// the pixels of 48 points on their circle. Only with
+    /// the pixels of half as many points on their circle. Only with
     /// `circle_splatting`. Unset: on wherever `circle_splatting` is.
     pub ground_splatting: Option<bool>,
     /// The approximate sky model's light on the ground as a control

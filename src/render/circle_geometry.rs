@@ -6,20 +6,46 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
-/// Positions along a circle per point: the phase-drawn positions follow
-/// the light the paths found, and the paths cost more than the positions.
-/// With the ground's one bounce a walk (`super::splatting`), 96 pay at
-/// sunset and more so the larger the image, whose circles cross more
-/// pixels (`BENCHMARKS.md`, the circle splatting row).
+use super::camera::Camera;
+
+/// Positions along a circle per point at the bench's 256×128 equirect
+/// map: the phase-drawn positions follow the light the paths found, and
+/// the paths cost more than the positions (their transmittance a table's
+/// look-up, `super::observer_depths`). More pay the larger the image,
+/// whose circles cross more pixels ([`splats_per_walk`]).
 pub const SPLATS_PER_WALK: usize = 96;
+/// The most positions per point, at 1024×512 and finer.
+pub const MAX_SPLATS_PER_WALK: usize = 192;
+/// Pixels per radian (√ of the camera's pixels per steradian at its
+/// centre) of a 256×128 equirect map, where [`SPLATS_PER_WALK`] pay.
+const BASE_PIXELS_PER_RADIAN: f64 = 256.0 / (2.0 * PI);
+
+/// Positions per point for `camera`: [`SPLATS_PER_WALK`] times the square
+/// root of its pixels per radian over a 256×128 equirect map's, a multiple
+/// of 8 up to [`MAX_SPLATS_PER_WALK`]. A circle crosses pixels in
+/// proportion to the resolution, and positions cost a fraction of the
+/// path they share: with their transmittance from a table, 128 or 192
+/// positions cost more than they save at 256×128 (1.00–1.16× the
+/// variance × time, and the rows' noise more correlated), while at
+/// 1024×512, twice the 96's square-root law, 192 gave 0.88× and 128
+/// 0.91–0.94× (`BENCHMARKS.md`, the circle splatting row).
+pub fn splats_per_walk(camera: &Camera) -> usize {
+    let (width, height) = camera.size();
+    let per_sr = camera
+        .direction(0.5 * width, 0.5 * height)
+        .map_or(0.0, |d| camera.pixels_per_sr(d));
+    let scale = (per_sr.max(0.0).sqrt() / BASE_PIXELS_PER_RADIAN).sqrt();
+    let count = (SPLATS_PER_WALK as f64 * scale / 8.0).round() as usize * 8;
+    count.clamp(SPLATS_PER_WALK, MAX_SPLATS_PER_WALK)
+}
 /// Of them, drawn before the path's direction: from the Cauchy density
 /// about the observer's nearest point, and uniformly.
 pub(super) const CAUCHY_SPLATS: usize = 4;
 pub(super) const UNIFORM_SPLATS: usize = 4;
 pub(super) const FIRST_SPLATS: usize = CAUCHY_SPLATS + UNIFORM_SPLATS;
-/// The rest, drawn after it: from the Cauchy density times the phase
-/// function toward the observer at each position ([`PhaseCells`]).
-pub(super) const PHASE_SPLATS: usize = SPLATS_PER_WALK - FIRST_SPLATS;
+/// The rest ([`splats_per_walk`] − [`FIRST_SPLATS`]) are drawn after it:
+/// from the Cauchy density times the phase function toward the observer
+/// at each position ([`PhaseCells`]).
 /// Cells of the phase-weighted density, uniform in the Cauchy quantile.
 pub(super) const PHASE_CELLS: usize = 32;
 /// Share of the phase-weighted density spread evenly over its cells (a
@@ -184,11 +210,12 @@ impl Arc {
     /// The positions' combined density at `psi` (balance heuristic over the
     /// three kinds of draws, multi-sample MIS: the estimate of a sum over
     /// positions divides each term by it).
-    pub(super) fn density(&self, psi: f64, cells: &PhaseCells) -> f64 {
+    /// `phase_splats` the number of phase-drawn positions.
+    pub(super) fn density(&self, psi: f64, cells: &PhaseCells, phase_splats: usize) -> f64 {
         let cauchy = self.cauchy_density(psi);
         CAUCHY_SPLATS as f64 * cauchy
             + UNIFORM_SPLATS as f64 / (2.0 * self.half)
-            + PHASE_SPLATS as f64 * cells.density(self, psi, cauchy)
+            + phase_splats as f64 * cells.density(self, psi, cauchy)
     }
 }
 
@@ -229,13 +256,18 @@ impl PhaseCells {
         self.probabilities[m] * PHASE_CELLS as f64 * cauchy
     }
 
-    /// [`PHASE_SPLATS`] positions, stratified by `u` over the cells'
-    /// cumulative probabilities.
-    pub(super) fn positions(&self, arc: &Arc, u: f64) -> [f64; PHASE_SPLATS] {
+    /// `count` positions, stratified by `u` over the cells' cumulative
+    /// probabilities.
+    pub(super) fn positions<'a>(
+        &'a self,
+        arc: &'a Arc,
+        u: f64,
+        count: usize,
+    ) -> impl Iterator<Item = f64> + 'a {
         let mut m = 0;
         let mut below = 0.0;
-        std::array::from_fn(|k| {
-            let v = (k as f64 + u) / PHASE_SPLATS as f64;
+        (0..count).map(move |k| {
+            let v = (k as f64 + u) / count as f64;
             while m + 1 < PHASE_CELLS && below + self.probabilities[m] <= v {
                 below += self.probabilities[m];
                 m += 1;

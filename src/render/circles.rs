@@ -64,8 +64,8 @@ use super::medium::{Lanes, Medium, SpectralLanes, LANES};
 use super::observer_depths::ObserverRays;
 use crate::rng::Rng;
 
-pub use super::circle_geometry::SPLATS_PER_WALK;
 use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS};
+pub use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK, SPLATS_PER_WALK};
 
 /// Directions (each with its path) per point, shared by its positions:
 /// about half a twilight walk's variance is its path's, and a second
@@ -169,6 +169,8 @@ pub struct CircleSplatter {
     /// The look-ups of the rays from the observer, where every splat's
     /// ray to the camera starts.
     observer: ObserverRays,
+    /// Positions per point ([`splats_per_walk`]).
+    splats: usize,
 }
 
 /// The points' density learned from the splats of a render's passes so
@@ -360,6 +362,7 @@ impl CircleSplatter {
             prior_bins,
             prior_cells,
             observer,
+            splats: splats_per_walk(camera),
         })
     }
 
@@ -476,6 +479,11 @@ impl CircleSplatter {
         }
     }
 
+    /// Positions per point: splats a walk makes at most.
+    pub fn splats_per_walk(&self) -> usize {
+        self.splats
+    }
+
     /// One path and its splats (at most [`SPLATS_PER_WALK`]) into `out`;
     /// each splat's XYZ is the path's estimate for its pixel (the film
     /// divides by the number of paths). `wavelength_weights[j]` turns lane
@@ -519,7 +527,9 @@ impl CircleSplatter {
             let to = axis.point(r, theta, psi) - axis.observer_m;
             (to, axis.rotate(to.normalize(), -psi))
         };
-        let mut positions = [(0.0, DVec3::ZERO, DVec3::ZERO); SPLATS_PER_WALK];
+        let mut positions = [(0.0, DVec3::ZERO, DVec3::ZERO); MAX_SPLATS_PER_WALK];
+        let positions = &mut positions[..self.splats];
+        let phase_splats = self.splats - FIRST_SPLATS;
         for (slot, psi) in positions.iter_mut().zip(arc.first_positions(rng.uniform())) {
             let (to, camera_dir) = place(psi);
             *slot = (psi, to, camera_dir);
@@ -552,18 +562,19 @@ impl CircleSplatter {
                 .map(|(d, _)| integrator.phase_mixture_pdf(&c, lanes, camera_dir.dot(*d)))
                 .sum::<f64>()
         }));
-        for (slot, psi) in positions[FIRST_SPLATS..]
-            .iter_mut()
-            .zip(cells.positions(&arc, rng.uniform()))
-        {
+        for (slot, psi) in positions[FIRST_SPLATS..].iter_mut().zip(cells.positions(
+            &arc,
+            rng.uniform(),
+            phase_splats,
+        )) {
             let (to, camera_dir) = place(psi);
             *slot = (psi, to, camera_dir);
         }
         let (width, height) = camera.size();
         let mut discarded = 0;
         let first = out.len();
-        for &(psi, to, cam_dir) in &positions {
-            let position_density = arc.density(psi, &cells);
+        for &(psi, to, cam_dir) in positions.iter() {
+            let position_density = arc.density(psi, &cells, phase_splats);
             let t = to.length();
             let dir = to / t;
             let per_sr = camera.pixels_per_sr(dir);
@@ -624,7 +635,10 @@ impl CircleSplatter {
 mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
-    use crate::render::circle_geometry::{PHASE_CELLS, PHASE_FLOOR, PHASE_SPLATS};
+    use crate::render::circle_geometry::{PHASE_CELLS, PHASE_FLOOR};
+
+    /// Phase-drawn positions at the base count.
+    const PHASE_SPLATS: usize = SPLATS_PER_WALK - FIRST_SPLATS;
     use crate::render::direction_from_az_el;
     use crate::render::guide::SkyGuide;
 
@@ -692,7 +706,8 @@ mod tests {
         // estimate of ∫ f over the arc for any f: with f = 1, the 1/t² shape
         // and a smooth one, averaged over both rounds' stratification
         // offsets, for even cell weights, a peaked set (one cell 1000×
-        // the rest) and a zero one (all floor).
+        // the rest) and a zero one (all floor), at the fewest and the most
+        // positions a walk takes.
         let (half, scale) = (0.3, 2e-4);
         let arc = Arc::new(half, scale);
         let mut peaked = [1.0; PHASE_CELLS];
@@ -715,7 +730,10 @@ mod tests {
                     * half
                     / f64::from(n)
             };
-            for weights in cell_sets {
+            for (weights, phase_splats) in cell_sets
+                .into_iter()
+                .flat_map(|w| [(w, PHASE_SPLATS), (w, MAX_SPLATS_PER_WALK - FIRST_SPLATS)])
+            {
                 let cells = PhaseCells::new(weights);
                 let trials = 400u32;
                 let mut sum = 0.0;
@@ -724,22 +742,45 @@ mod tests {
                         let u = (f64::from(i) + 0.5) / f64::from(trials);
                         let v = (f64::from(j) + 0.5) / f64::from(trials);
                         let first = arc.first_positions(u);
-                        let second = cells.positions(&arc, v);
                         sum += first
                             .iter()
-                            .chain(&second)
-                            .map(|&psi| f(psi) / arc.density(psi, &cells))
+                            .copied()
+                            .chain(cells.positions(&arc, v, phase_splats))
+                            .map(|psi| f(psi) / arc.density(psi, &cells, phase_splats))
                             .sum::<f64>();
                     }
                 }
                 let estimate = sum / f64::from(trials * trials);
                 assert!(
                     (estimate / exact - 1.0).abs() < 2e-3,
-                    "{estimate} against {exact} (cells {:?})",
+                    "{estimate} against {exact} (cells {:?}, {phase_splats})",
                     &weights[..4]
                 );
             }
         }
+    }
+
+    #[test]
+    fn positions_grow_with_the_images_resolution() {
+        // 96 at the bench's 256×128 map, × √2 per doubling of the pixels
+        // per radian, up to 192 from 1024×512; a 90° perspective view 160
+        // pixels wide has 80 per radian at its centre (an equirect map 503
+        // wide), 1024 wide 512 (the most).
+        let equirect = crate::scene::CameraParams::default();
+        let count = |params: &crate::scene::CameraParams, w: u32, h: u32| {
+            splats_per_walk(&Camera::new(params, w, h))
+        };
+        assert_eq!(count(&equirect, 256, 128), SPLATS_PER_WALK);
+        assert_eq!(count(&equirect, 128, 64), SPLATS_PER_WALK);
+        assert_eq!(count(&equirect, 512, 256), 136);
+        assert_eq!(count(&equirect, 1024, 512), MAX_SPLATS_PER_WALK);
+        assert_eq!(count(&equirect, 4096, 2048), MAX_SPLATS_PER_WALK);
+        let perspective = crate::scene::CameraParams {
+            kind: crate::scene::CameraKind::Perspective,
+            ..equirect
+        };
+        assert_eq!(count(&perspective, 1024, 576), MAX_SPLATS_PER_WALK);
+        assert_eq!(count(&perspective, 160, 90), 136);
     }
 
     #[test]
@@ -758,7 +799,7 @@ mod tests {
         let mut counts = [0usize; PHASE_CELLS];
         for i in 0..trials {
             let u = (f64::from(i) + 0.5) / f64::from(trials);
-            for psi in cells.positions(&arc, u) {
+            for psi in cells.positions(&arc, u, PHASE_SPLATS) {
                 let m = (arc.quantile(psi) * PHASE_CELLS as f64) as usize;
                 counts[m.min(PHASE_CELLS - 1)] += 1;
             }

@@ -16,7 +16,8 @@
 //! noise (its path's, at sunset and twilight most of the ground's) stays
 //! in one pixel. Here one bounce serves many pixels: an angle θ is drawn,
 //! a bounce path at x₀ = (R_g, θ, 0) estimates ρ(x₀) — also an unbiased
-//! estimate of ρ at every x_k = R_k x₀ — and [`GROUND_SPLATS`] positions ψ_k
+//! estimate of ρ at every x_k = R_k x₀ — and K positions ψ_k
+//! ([`GROUND_SPLATS`] at 256×128, more at finer images)
 //! along the circle each add J T cos_x R_g² sin θ ρ̂ / (t² p(θ) q(ψ_k)) to
 //! the pixel that sees x_k, q the positions' combined density (balance
 //! heuristic over their three kinds, multi-sample MIS). Each pixel's
@@ -65,11 +66,15 @@ use crate::rng::Rng;
 /// noise follows how many pixels each bounce's estimate is spread over
 /// more than how many bounces there are: one bounce of many positions
 /// beats several of few (`BENCHMARKS.md`, the ground splatting row).
+/// This many at the bench's 256×128 map, half the air's positions at any
+/// size ([`super::circle_geometry::splats_per_walk`]).
 pub const GROUND_SPLATS: usize = 48;
-/// Of them, from the Cauchy density about the observer's nearest point,
-/// and from the narrow one about the foot's (the rest uniform).
-const CAUCHY_GROUND_SPLATS: usize = 18;
-const NARROW_GROUND_SPLATS: usize = 18;
+/// The most positions per bounce.
+pub const MAX_GROUND_SPLATS: usize = super::circle_geometry::MAX_SPLATS_PER_WALK / 2;
+/// Of them, 3/8 from the Cauchy density about the observer's nearest
+/// point and 3/8 from the narrow one about the foot's (the rest uniform).
+const CAUCHY_GROUND_EIGHTHS: usize = 3;
+const NARROW_GROUND_EIGHTHS: usize = 3;
 /// Share of the angles drawn uniformly over the visible ground.
 const UNIFORM_SHARE: f64 = 0.05;
 /// Share of the table's mass from the positions' integral alone (the rest
@@ -112,21 +117,22 @@ struct GroundArc {
     half: f64,
     near: Arc,
     narrow: Arc,
+    /// Positions per kind: Cauchy about the nearest point, narrow Cauchy,
+    /// uniform.
+    counts: [usize; 3],
 }
 
 impl GroundArc {
-    /// ψ of stratum position `k` (of [`GROUND_SPLATS`]) at offset `v`.
+    /// ψ of stratum position `k` (of the arc's positions) at offset `v`.
     fn position(&self, k: usize, v: f64) -> f64 {
-        let uniform = GROUND_SPLATS - CAUCHY_GROUND_SPLATS - NARROW_GROUND_SPLATS;
-        if k < CAUCHY_GROUND_SPLATS {
-            self.near
-                .cauchy((k as f64 + v) / CAUCHY_GROUND_SPLATS as f64)
-        } else if k < CAUCHY_GROUND_SPLATS + NARROW_GROUND_SPLATS {
-            let k = k - CAUCHY_GROUND_SPLATS;
-            self.narrow
-                .cauchy((k as f64 + v) / NARROW_GROUND_SPLATS as f64)
+        let [cauchy, narrow, uniform] = self.counts;
+        if k < cauchy {
+            self.near.cauchy((k as f64 + v) / cauchy as f64)
+        } else if k < cauchy + narrow {
+            let k = k - cauchy;
+            self.narrow.cauchy((k as f64 + v) / narrow as f64)
         } else {
-            let k = k - CAUCHY_GROUND_SPLATS - NARROW_GROUND_SPLATS;
+            let k = k - cauchy - narrow;
             self.half * (2.0 * (k as f64 + v) / uniform as f64 - 1.0)
         }
     }
@@ -134,11 +140,18 @@ impl GroundArc {
     /// The positions' combined density at `psi` (balance heuristic,
     /// multi-sample MIS: a sum over positions divides each term by it).
     fn density(&self, psi: f64) -> f64 {
-        let uniform = GROUND_SPLATS - CAUCHY_GROUND_SPLATS - NARROW_GROUND_SPLATS;
-        CAUCHY_GROUND_SPLATS as f64 * self.near.cauchy_density(psi)
-            + NARROW_GROUND_SPLATS as f64 * self.narrow.cauchy_density(psi)
+        let [cauchy, narrow, uniform] = self.counts;
+        cauchy as f64 * self.near.cauchy_density(psi)
+            + narrow as f64 * self.narrow.cauchy_density(psi)
             + uniform as f64 / (2.0 * self.half)
     }
+}
+
+/// Positions per kind for `splats` positions a bounce.
+fn kind_counts(splats: usize) -> [usize; 3] {
+    let cauchy = splats * CAUCHY_GROUND_EIGHTHS / 8;
+    let narrow = splats * NARROW_GROUND_EIGHTHS / 8;
+    [cauchy, narrow, splats - cauchy - narrow]
 }
 
 /// Splats the skylight the ground reflects, for one scene and camera.
@@ -156,6 +169,9 @@ pub struct GroundSplatter {
     cdf: Vec<f64>,
     /// The look-ups of the rays from the observer.
     observer: ObserverRays,
+    /// Positions per bounce: half the air's per point
+    /// ([`super::circle_geometry::splats_per_walk`]).
+    splats: usize,
 }
 
 impl GroundSplatter {
@@ -203,6 +219,7 @@ impl GroundSplatter {
             bins: Vec::new(),
             cdf: Vec::new(),
             observer: ObserverRays::new(medium, observer_m),
+            splats: super::circle_geometry::splats_per_walk(camera) / 2,
         };
         let lanes = SpectralLanes::new(Lanes::from([TABLE_WAVELENGTH_NM; LANES]), 1, medium, true);
         // Per bin: the positions' integral (and with the guide's light) at
@@ -225,7 +242,7 @@ impl GroundSplatter {
                         for node in 0..TABLE_NODES {
                             // Each node one full stratified set of positions.
                             let v = (node as f64 + 0.5) / TABLE_NODES as f64;
-                            for k in 0..GROUND_SPLATS {
+                            for k in 0..splatter.splats {
                                 let Some(landing) = splatter.land(&arc, arc.position(k, v), camera)
                                 else {
                                     continue;
@@ -307,6 +324,7 @@ impl GroundSplatter {
             half,
             near: Arc::new(half, scale),
             narrow: Arc::new(half, scale * foot.max(1e-6)),
+            counts: kind_counts(self.splats),
         })
     }
 
@@ -384,14 +402,17 @@ impl GroundSplatter {
         &self,
         camera: &Camera,
         rng: &mut Rng,
-    ) -> Option<(GroundArc, f64, [Option<Landing>; GROUND_SPLATS])> {
+    ) -> Option<(GroundArc, f64, [Option<Landing>; MAX_GROUND_SPLATS])> {
         let (choice, v, w) = (rng.uniform(), rng.uniform(), rng.uniform());
         let u = self.sample_u(choice, v, w);
         let u_density = self.u_density(u);
         let arc = self.arc(u).filter(|_| u_density > 0.0)?;
         let offset = rng.uniform();
-        let landings: [Option<Landing>; GROUND_SPLATS] =
-            std::array::from_fn(|k| self.land(&arc, arc.position(k, offset), camera));
+        let landings: [Option<Landing>; MAX_GROUND_SPLATS] = std::array::from_fn(|k| {
+            (k < self.splats)
+                .then(|| self.land(&arc, arc.position(k, offset), camera))
+                .flatten()
+        });
         // Per dθ: per du × R_g.
         let theta_density = u_density * self.axis.ground_m;
         landings
@@ -400,11 +421,16 @@ impl GroundSplatter {
             .then_some((arc, theta_density, landings))
     }
 
-    /// One bounce and its splats (at most [`GROUND_SPLATS`]) into `out`,
-    /// each weighted by `scale` (the share of the walk's unit the bounce
-    /// is); `wavelength_weights[j]` turns lane j's radiance into XYZ as in
-    /// [`super::circles::CircleSplatter::walk`]. Returns the splats
-    /// discarded as not finite.
+    /// Positions per bounce: splats a bounce makes at most.
+    pub fn splats_per_bounce(&self) -> usize {
+        self.splats
+    }
+
+    /// One bounce and its splats (at most [`Self::splats_per_bounce`])
+    /// into `out`, each weighted by `scale` (the share of the walk's unit
+    /// the bounce is); `wavelength_weights[j]` turns lane j's radiance into
+    /// XYZ as in [`super::circles::CircleSplatter::walk`]. Returns the
+    /// splats discarded as not finite.
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &self,

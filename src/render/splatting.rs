@@ -5,9 +5,8 @@
 
 use rayon::prelude::*;
 
-use super::circles::SPLATS_PER_WALK;
 use super::film_spectral::Splat;
-use super::ground_circles::{GroundSplatter, GROUND_SPLATS};
+use super::ground_circles::GroundSplatter;
 use super::medium::{Lanes, SpectralLanes, LANES};
 use super::{Film, Integrator, Renderer, Sampler};
 use crate::rng::{mix64, Rng, SOBOL_POINTS};
@@ -95,10 +94,10 @@ impl Renderer {
                 .into_par_iter()
                 .map(|c| {
                     let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
-                    let per_walk = SPLATS_PER_WALK
-                        + ground
-                            .as_ref()
-                            .map_or(0, |_| GROUND_WALKS_PER_WALK as usize * GROUND_SPLATS);
+                    let per_walk = splatter.splats_per_walk()
+                        + ground.as_ref().map_or(0, |g| {
+                            GROUND_WALKS_PER_WALK as usize * g.splats_per_bounce()
+                        });
                     let mut splats = Vec::with_capacity(CHUNK as usize * per_walk);
                     let mut moments = Vec::with_capacity(CHUNK as usize);
                     let mut discarded = 0;
