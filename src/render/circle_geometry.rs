@@ -39,13 +39,12 @@ pub fn splats_per_walk(camera: &Camera) -> usize {
     count.clamp(SPLATS_PER_WALK, MAX_SPLATS_PER_WALK)
 }
 /// Of them, drawn before the path's direction: from the Cauchy density
-/// about the observer's nearest point, and uniformly.
+/// about the observer's nearest point, and uniformly. The rest are drawn
+/// after it: from the Cauchy density times the phase function toward the
+/// observer at each position ([`PhaseCells`]).
 pub(super) const CAUCHY_SPLATS: usize = 4;
 pub(super) const UNIFORM_SPLATS: usize = 4;
 pub(super) const FIRST_SPLATS: usize = CAUCHY_SPLATS + UNIFORM_SPLATS;
-/// The rest ([`splats_per_walk`] − [`FIRST_SPLATS`]) are drawn after it:
-/// from the Cauchy density times the phase function toward the observer
-/// at each position ([`PhaseCells`]).
 /// Cells of the phase-weighted density, uniform in the Cauchy quantile.
 pub(super) const PHASE_CELLS: usize = 32;
 /// Share of the phase-weighted density spread evenly over its cells (a
@@ -207,10 +206,10 @@ impl Arc {
         })
     }
 
-    /// The positions' combined density at `psi` (balance heuristic over the
-    /// three kinds of draws, multi-sample MIS: the estimate of a sum over
-    /// positions divides each term by it).
-    /// `phase_splats` the number of phase-drawn positions.
+    /// The positions' combined density at `psi`, `phase_splats` of them
+    /// drawn by `cells` (balance heuristic over the three kinds of draws,
+    /// multi-sample MIS: the estimate of a sum over positions divides each
+    /// term by it).
     pub(super) fn density(&self, psi: f64, cells: &PhaseCells, phase_splats: usize) -> f64 {
         let cauchy = self.cauchy_density(psi);
         CAUCHY_SPLATS as f64 * cauchy

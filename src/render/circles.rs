@@ -484,7 +484,7 @@ impl CircleSplatter {
         self.splats
     }
 
-    /// One path and its splats (at most [`SPLATS_PER_WALK`]) into `out`;
+    /// One path and its splats (at most [`Self::splats_per_walk`]) into `out`;
     /// each splat's XYZ is the path's estimate for its pixel (the film
     /// divides by the number of paths). `wavelength_weights[j]` turns lane
     /// j's radiance into XYZ (K_m x̄ȳz̄(λ) / (its density × the lanes)).
@@ -636,11 +636,11 @@ mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
     use crate::render::circle_geometry::{PHASE_CELLS, PHASE_FLOOR};
+    use crate::render::direction_from_az_el;
+    use crate::render::guide::SkyGuide;
 
     /// Phase-drawn positions at the base count.
     const PHASE_SPLATS: usize = SPLATS_PER_WALK - FIRST_SPLATS;
-    use crate::render::direction_from_az_el;
-    use crate::render::guide::SkyGuide;
 
     fn axis_for(sun_elevation_deg: f64) -> SunAxis {
         let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));

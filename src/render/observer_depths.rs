@@ -55,7 +55,10 @@ const LENGTH_NODES: usize = 65;
 /// Simpson intervals between two length nodes (even).
 const SIMPSON_STEPS: usize = 8;
 /// The share q of the splats' transmittances that also take the unbiased
-/// estimate and correct the table's.
+/// estimate and correct the table's: the correction's variance grows as
+/// 1/q, but from a small base (the table within 2 % of T, the tracking's
+/// spread a few per cent), and 1/8 bought nothing measurable over 1/16
+/// (`BENCHMARKS.md`).
 pub const CORRECTED_SHARE: f64 = 0.0625;
 /// A point farther than the ground by this relative margin (and
 /// [`HIDDEN_MARGIN_M`]) is hidden.
