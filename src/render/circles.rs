@@ -64,8 +64,9 @@ use super::medium::{Lanes, Medium, SpectralLanes, LANES};
 use super::observer_depths::ObserverRays;
 use crate::rng::Rng;
 
+pub use super::circle_geometry::SPLATS_PER_WALK;
 use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS};
-pub use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK, SPLATS_PER_WALK};
+use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK};
 
 /// Directions (each with its path) per point, shared by its positions:
 /// about half a twilight walk's variance is its path's, and a second

@@ -77,9 +77,6 @@ struct Fan {
 impl Fan {
     /// The fan's node coordinate of cosine `mu` (clamped to the fan).
     fn coordinate(&self, mu: f64) -> f64 {
-        if self.span == 0.0 {
-            return 0.0;
-        }
         ((mu - self.edge) / self.span).max(0.0).sqrt().min(1.0)
     }
 
