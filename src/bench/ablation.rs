@@ -118,6 +118,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("splat_transmittance_table=false", |s| {
             s.render.integrator.splat_transmittance_table = false;
         }),
+        ("sun_transmittance_table=false", |s| {
+            s.render.integrator.sun_transmittance_table = false;
+        }),
         ("sampler=independent", |s| {
             s.render.integrator.sampler = crate::render::Sampler::Independent;
         }),

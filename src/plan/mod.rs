@@ -305,6 +305,9 @@ pub struct TechniquePlan {
     /// The splats' transmittance from the observer by its table, a random
     /// share corrected ([`crate::render::observer_depths`]).
     pub splat_transmittance_table: bool,
+    /// The sun's shadow rays by its column table, a random share corrected
+    /// ([`crate::render::debias`]).
+    pub sun_transmittance_table: bool,
     /// How pixel samples draw their first random numbers.
     pub sampler: Sampler,
     /// The first pass's weight in the film's average (1 for later ones).
@@ -381,6 +384,11 @@ impl TechniquePlan {
                 && options.max_scattering_order.is_none()
                 && !(control_variate && options.control_source == Some(ControlSource::Model)),
             splat_transmittance_table: options.splat_transmittance_table,
+            // The other shadow estimators are there to be compared: they
+            // take every ray themselves.
+            sun_transmittance_table: options.sun_transmittance_table
+                && options.tight_majorants
+                && options.shadow_transmittance == TransmittanceEstimator::ResidualRatioTracking,
             sampler: options.sampler,
             draft_weight: row.draft_weight,
         }
@@ -395,8 +403,8 @@ impl TechniquePlan {
     /// segments, no control variate, no guided directions, no splitting, independent
     /// random numbers (the Sobol prefix costs ~4 % of a path and one pass
     /// gains nothing from stratification across passes), and shadow rays
-    /// through the shells' chords (the column table takes ~20 ms to build:
-    /// not in the first frame). Every pass is an unbiased estimate, so the
+    /// through the shells' chords, not the tables (the column table takes
+    /// ~20 ms to build: not in the first frame). Every pass is an unbiased estimate, so the
     /// film's weighted average of them stays unbiased.
     #[must_use]
     pub fn first_pass(&self) -> Self {
@@ -428,6 +436,7 @@ impl TechniquePlan {
             },
             control_variate: false,
             ground_control: false,
+            sun_transmittance_table: false,
             sampler: Sampler::Independent,
             ..*self
         }

@@ -126,6 +126,16 @@ pub struct IntegratorOptions {
     /// ([`crate::render::observer_depths`]); `false`: every splat takes the
     /// unbiased estimate itself.
     pub splat_transmittance_table: bool,
+    /// The shadow rays toward the sun read their transmittance from the
+    /// table of columns toward it over altitude and solar zenith
+    /// ([`crate::render::sun_columns`]), a random sixteenth of them
+    /// corrected by the unbiased estimate, which keeps the sum unbiased
+    /// ([`crate::render::debias`]); rays that descend from their point
+    /// (toward a perigee, where the table can be many times off) take the
+    /// unbiased estimate itself, as every ray does with `false` or with a
+    /// `shadow_transmittance` or majorant other than the default (those are
+    /// there to be compared).
+    pub sun_transmittance_table: bool,
     /// How a pixel sample draws its first random numbers.
     pub sampler: Sampler,
     /// Keep only scattering orders up to this (for tests of single scattering;
@@ -158,6 +168,7 @@ impl Default for IntegratorOptions {
             ground_splatting: None,
             ground_control: None,
             splat_transmittance_table: true,
+            sun_transmittance_table: true,
             sampler: Sampler::Sobol,
             max_scattering_order: None,
         }

@@ -15,6 +15,7 @@ pub mod circle_geometry;
 pub mod circles;
 pub mod columns;
 pub mod control;
+pub mod debias;
 pub mod denoise;
 pub mod directions;
 pub mod exact;

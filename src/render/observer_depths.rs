@@ -15,16 +15,9 @@
 //!
 //! T̃ is an approximation; the estimate stays unbiased by correcting it
 //! on a random share q ([`CORRECTED_SHARE`]) of the rays with the unbiased
-//! estimate T̂ — Russian roulette on the correction, the debiasing of an
-//! approximation as in Misso et al. 2022, "Unbiased and consistent
-//! rendering using biased estimators", *ACM Transactions on Graphics*
-//! 41(4):
-//!
-//! X = T̃ + 𝟙(u < q) (T̂ − T̃) / q,  E\[X\] = T̃ + E\[T̂\] − T̃ = T,
-//!
-//! Var X = Var T̂ / q + (1/q − 1)(T − T̃)²:
-//! the price is the tracking's own spread, times 1/q, and the table's
-//! error, both small beside a splat's path estimate (`BENCHMARKS.md`).
+//! estimate T̂ ([`super::debias`]): X = T̃ + 𝟙(u < q) (T̂ − T̃) / q. The
+//! price, Var T̂ / q + (1/q − 1)(T − T̃)², the tracking's own spread and the
+//! table's error, is small beside a splat's path estimate (`BENCHMARKS.md`).
 //!
 //! **The table.** Rays below the cosine μ_g = −√(1 − (R/r₀)²) meet the
 //! ground, the others leave through the top; each set has its own fan of
@@ -44,6 +37,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::columns::{ColumnTable, FixedStart, Profiles, PROFILES};
+use super::debias::corrected;
 use super::integrator::Integrator;
 use super::medium::{Lanes, Medium, SpectralLanes};
 use crate::rng::Rng;
@@ -226,22 +220,6 @@ impl ObserverDepths {
         let depth = lanes.control(self.columns(dir, t_m)?);
         Some(Lanes::from_fn(|j| (-depth[j]).exp()))
     }
-}
-
-/// `approx` corrected on a share `share` of the calls (`rng`'s next
-/// number) by the unbiased estimate `exact` draws: unbiased whatever
-/// `approx` is (module doc).
-fn corrected(
-    approx: Lanes,
-    share: f64,
-    rng: &mut Rng,
-    exact: impl FnOnce(&mut Rng) -> Lanes,
-) -> Lanes {
-    if rng.uniform() >= share {
-        return approx;
-    }
-    let exact = exact(rng);
-    Lanes::from_fn(|j| approx[j] + (exact[j] - approx[j]) / share)
 }
 
 /// The observer's two look-ups for its rays: the column table's at the

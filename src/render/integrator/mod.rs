@@ -110,6 +110,14 @@
 //! anywhere on the visible ground, each added to the pixels along its
 //! point's circle ([`super::ground_circles`], `Integrator::ground_light`).
 //!
+//! **Shadow rays toward the sun** (`sun_transmittance_table`) that climb
+//! from their point read T̃ from the table of columns toward the sun over
+//! altitude and solar zenith ([`super::sun_columns`]); a random sixteenth
+//! of them add the tracked estimate's difference from it, times 16, which
+//! keeps every one unbiased ([`super::debias`]). The tracking had been
+//! the largest part of a next-event estimate's cost. Rays that descend
+//! toward a perigee, where the table can be far off, are tracked.
+//!
 //! **Alternative kept as an option** (not faster at equal time on the
 //! benchmark scenes; see `BENCHMARKS.md`): `shadow_samples` estimates only
 //! the segments that start in the planet's shadow through points drawn
@@ -289,8 +297,15 @@ impl SegmentDensity for CachedRayDensity<'_> {
 }
 
 impl<'a> Integrator<'a> {
-    /// An integrator of `plan` in `medium` for the sun along `sun_direction`.
+    /// An integrator of `plan` in `medium` for the sun along `sun_direction`
+    /// (building the medium's columns toward the sun if the plan reads its
+    /// shadow rays from them).
     pub fn new(medium: &'a Medium, plan: &'a TechniquePlan, sun_direction: DVec3) -> Self {
+        if plan.sun_transmittance_table {
+            // Built now, before any pass: a parallel build on first use
+            // inside a pass's workers could deadlock on the medium's lock.
+            medium.sun_columns();
+        }
         Self {
             medium,
             plan,
