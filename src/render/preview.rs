@@ -10,7 +10,7 @@
 //!
 //! A full pass at sunset takes seconds on two cores; the model alone is
 //! 1–10 % off; corrected, two seconds after a change, about 0.4 % by day,
-//! 0.8 % from orbit and on Mars at noon and 1.4–1.7 % at sunset and
+//! 0.8 % from orbit and on Mars at noon and 1.4–2.3 % at sunset and
 //! twilight (`BENCHMARKS.md`).
 
 use std::time::{Duration, Instant};

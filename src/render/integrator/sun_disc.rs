@@ -6,13 +6,13 @@ use crate::render::debias;
 use crate::render::sunlight::sun_optical_depth;
 
 /// The share q of the sun's shadow rays that also take the tracked
-/// estimate and correct the table's T̃ ([`debias`]). On the rays that climb
-/// from their point the table is within 3 % of T and the tracking's own spread is
-/// ≤ 8 % where T > 10⁻⁴ (the tests below), so the correction adds a
-/// relative variance of at most (0.08² + 0.03²)/q ≈ 0.12 to an estimate that
-/// multiplies a path's light; 1/8 and 1/32 measured no better at sunset and
-/// midday (`BENCHMARKS.md`).
-pub(crate) const SUN_CORRECTED_SHARE: f64 = 0.0625;
+/// estimate and correct the table's T̃ ([`debias`]). On the rays that
+/// climb from their point the table is within 3 % of T and the tracking's
+/// own spread is ≤ 8 % where T > 10⁻⁴ (the tests below), so the
+/// correction adds a relative variance of at most (0.08² + 0.03²)/q ≈ 0.12
+/// to an estimate that multiplies a path's light; 1/8 and 1/32 measured no
+/// better at sunset and midday (`BENCHMARKS.md`).
+const SUN_CORRECTED_SHARE: f64 = 0.0625;
 
 impl Integrator<'_> {
     /// Uniform direction within the solar disc's cone. Unit without
@@ -47,8 +47,8 @@ impl Integrator<'_> {
 
     /// The transmittance from `origin` along `dir` (within the sun's disc)
     /// to the top of the atmosphere, unbiased. With the plan's
-    /// `sun_transmittance_table`, the table of columns toward the sun gives
-    /// T̃ (zero where it calls the sun hidden), and a share
+    /// `sun_transmittance_table`, on a ray that climbs from `origin`, the
+    /// table of columns toward the sun gives T̃, and a share
     /// [`SUN_CORRECTED_SHARE`] of the calls (`rng`'s next number) corrects it
     /// by the tracked estimate ([`debias`]); otherwise the tracked estimate
     /// alone.
