@@ -404,8 +404,8 @@ impl TechniquePlan {
     /// random numbers (the Sobol prefix costs ~4 % of a path and one pass
     /// gains nothing from stratification across passes), and shadow rays
     /// through the shells' chords, not the tables (the column table takes
-    /// ~20 ms to build: not in the first frame). Every pass is an unbiased estimate, so the
-    /// film's weighted average of them stays unbiased.
+    /// ~20 ms to build: not in the first frame). Every pass is an unbiased
+    /// estimate, so the film's weighted average of them stays unbiased.
     #[must_use]
     pub fn first_pass(&self) -> Self {
         Self {
