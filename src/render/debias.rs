@@ -37,3 +37,22 @@ pub fn corrected(
     let exact = exact(rng);
     Lanes::from_fn(|j| approx[j] + (exact[j] - approx[j]) / share)
 }
+
+/// Mean and standard error per lane of `n` draws of `f` (the tests'
+/// comparisons of a corrected estimate with the one it corrects).
+#[cfg(test)]
+pub(crate) fn mean_and_error(n: u64, mut f: impl FnMut(u64) -> Lanes) -> (Lanes, Lanes) {
+    let (mut sum, mut squares) = (Lanes::splat(0.0), Lanes::splat(0.0));
+    for k in 0..n {
+        let v = f(k);
+        for j in 0..super::medium::LANES {
+            sum[j] += v[j];
+            squares[j] += v[j] * v[j];
+        }
+    }
+    let mean = Lanes::from_fn(|j| sum[j] / n as f64);
+    let error = Lanes::from_fn(|j| {
+        ((squares[j] / n as f64 - mean[j] * mean[j]).max(0.0) / (n - 1) as f64).sqrt()
+    });
+    (mean, error)
+}

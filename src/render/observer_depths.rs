@@ -274,6 +274,7 @@ mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
     use crate::plan::{Conditions, IntegratorOptions, TechniquePlan};
+    use crate::render::debias::mean_and_error;
     use crate::render::direction_from_az_el;
     use crate::render::medium::LANES;
 
@@ -285,23 +286,6 @@ mod tests {
             &Conditions::new(2.0, &AtmosphereParams::default(), true),
         );
         (medium, plan, direction_from_az_el(270.0, 2.0))
-    }
-
-    /// Mean and standard error over `n` draws of `f`, lane by lane.
-    fn mean_and_error(n: u64, mut f: impl FnMut(u64) -> Lanes) -> (Lanes, Lanes) {
-        let (mut sum, mut squares) = (Lanes::splat(0.0), Lanes::splat(0.0));
-        for k in 0..n {
-            let v = f(k);
-            for j in 0..LANES {
-                sum[j] += v[j];
-                squares[j] += v[j] * v[j];
-            }
-        }
-        let mean = Lanes::from_fn(|j| sum[j] / n as f64);
-        let error = Lanes::from_fn(|j| {
-            ((squares[j] / n as f64 - mean[j] * mean[j]).max(0.0) / (n - 1) as f64).sqrt()
-        });
-        (mean, error)
     }
 
     /// Rays from `altitude_m` at each elevation (°) to each fraction of

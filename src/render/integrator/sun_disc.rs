@@ -92,6 +92,7 @@ mod tests {
     use super::*;
     use crate::atmosphere::{Atmosphere, AtmosphereParams};
     use crate::plan::{Conditions, IntegratorOptions, TechniquePlan, TransmittanceEstimator};
+    use crate::render::debias::mean_and_error;
     use crate::render::direction_from_az_el;
     use crate::render::medium::{Bounds, Medium, LANES};
 
@@ -127,23 +128,6 @@ mod tests {
         list
     }
 
-    /// Mean and standard error per lane of `n` draws of `f`.
-    fn mean_and_error(n: u64, mut f: impl FnMut(u64) -> Lanes) -> (Lanes, Lanes) {
-        let (mut sum, mut squares) = (Lanes::splat(0.0), Lanes::splat(0.0));
-        for k in 0..n {
-            let v = f(k);
-            for j in 0..LANES {
-                sum[j] += v[j];
-                squares[j] += v[j] * v[j];
-            }
-        }
-        let mean = Lanes::from_fn(|j| sum[j] / n as f64);
-        let error = Lanes::from_fn(|j| {
-            ((squares[j] / n as f64 - mean[j] * mean[j]).max(0.0) / (n - 1) as f64).sqrt()
-        });
-        (mean, error)
-    }
-
     /// On the rays that climb from their point (the ones that read it) the
     /// table's T̃ is within 3 % of the
     /// tracked estimate's mean wherever T > 10⁻³, and that estimate's own
@@ -161,7 +145,7 @@ mod tests {
                 let Some(columns) = medium.sun_columns().at(x, sun) else {
                     continue;
                 };
-                let (exact, _) = mean_and_error(2000, |k| {
+                let (exact, error) = mean_and_error(2000, |k| {
                     medium.transmittance(
                         x,
                         sun,
@@ -169,16 +153,6 @@ mod tests {
                         plan.segments.shadow_transmittance,
                         Bounds::Tight,
                         &mut Rng::new(3, k),
-                    )
-                });
-                let (_, error) = mean_and_error(2000, |k| {
-                    medium.transmittance(
-                        x,
-                        sun,
-                        &lanes,
-                        plan.segments.shadow_transmittance,
-                        Bounds::Tight,
-                        &mut Rng::new(4, k),
                     )
                 });
                 for j in 0..LANES {
