@@ -62,14 +62,7 @@ pub(super) const SUN_CORE_CAP_COSINE: f64 = 0.985;
 /// first is summed (their light is smooth, and no phase function is read).
 pub(super) const GROUND_DIRECTIONS_HIGHER: usize = 64;
 /// Altitudes and solar-zenith cosines of the multiple-scattering table.
-/// Along a view near the horizon J changes fastest in the lowest
-/// kilometres, where the ground hides more of the phase function's peak
-/// the lower the point: at 9 rows (the second at 550 m on the Earth) the
-/// first frame at Mars sunset read 4.9 % off the path tracer's and the
-/// Earth's sunset 2.7 % (twilight 2.0 %), at 13 (the second at 200 m)
-/// 4.3 % and 1.9 % (twilight 2.7 %), at 17 4.3 % and 1.6 % for a third
-/// more time than 13 (256×128, against 2 × 24–40 passes).
-pub(super) const MS_ALTITUDES: usize = 13;
+pub(super) const MS_ALTITUDES: usize = 9;
 /// See [`MS_ALTITUDES`].
 pub(super) const MS_ZENITHS: usize = 33;
 
@@ -427,9 +420,10 @@ pub(super) struct MsTable {
     pub(super) top_m: f64,
     /// Per (altitude, zenith, ν): (J_R, J_A).
     pub(super) values: Vec<[Spectrum; 2]>,
-    /// Per (altitude, zenith, view zenith, view azimuth): J at that view,
-    /// for each of R and A; summed over orders.
-    pub(super) zenith_sums: Vec<[Spectrum; 2]>,
+    /// Per (altitude, zenith, view zenith, view azimuth): J at that view
+    /// and the ν table at its angle to the sun, for each of R and A;
+    /// summed over orders.
+    pub(super) zenith_sums: Vec<[[Spectrum; 2]; 2]>,
     /// Per (altitude, zenith, view zenith, view azimuth): the ratio of the
     /// two, by which the ν table's J is scaled at that view.
     pub(super) zenith_factors: Vec<[Spectrum; 2]>,
@@ -438,26 +432,8 @@ pub(super) struct MsTable {
 /// View-zenith cosines of [`MsTable`]'s zenith factors: μ_v = u|u|,
 /// dense about the horizon.
 pub(super) const MS_VIEW_ZENITHS: usize = 13;
-/// View azimuths from the sun's (0–180°) of the zenith factors, square
-/// spacing from the sun's ([`view_azimuth_of`]).
-pub(super) const MS_VIEW_AZIMUTHS: usize = 12;
-
-/// The azimuth from the sun's (radians, 0–π) of column `b` of the zenith
-/// factors: φ = π ((b + ½)/n)², dense toward the sun (0.3°, 2.8°, 7.8° …
-/// 166°). Beside a low sun the views sweep the aureole within a few
-/// degrees of azimuth, where the share of the phase function's peak that
-/// reaches below the horizon changes fastest; at 30° spacing (6 even
-/// columns) the second order at Mars sunset read 1.05–1.10× the path
-/// tracer's 6–15° beside the sun at the horizon.
-pub(super) fn view_azimuth_of(b: usize) -> f64 {
-    let u = (b as f64 + 0.5) / MS_VIEW_AZIMUTHS as f64;
-    PI * u * u
-}
-
-/// [`view_azimuth_of`]'s inverse, as a fractional column.
-pub(super) fn view_azimuth_index(phi: f64) -> f64 {
-    (phi / PI).clamp(0.0, 1.0).sqrt() * MS_VIEW_AZIMUTHS as f64 - 0.5
-}
+/// View azimuths from the sun's (0–180°) of the zenith factors.
+pub(super) const MS_VIEW_AZIMUTHS: usize = 6;
 
 pub(super) fn view_zenith_cosine_of(i: usize) -> f64 {
     let u = 2.0 * i as f64 / (MS_VIEW_ZENITHS - 1) as f64 - 1.0;
@@ -537,7 +513,10 @@ impl MsTable {
         } else {
             1.0
         };
-        let (b, fb) = split(view_azimuth_index(cos_phi.acos()), MS_VIEW_AZIMUTHS);
+        let (b, fb) = split(
+            cos_phi.acos() / PI * MS_VIEW_AZIMUTHS as f64 - 0.5,
+            MS_VIEW_AZIMUTHS,
+        );
         let mut factor = [[0.0; NODES]; 2];
         for (di, wi) in [(0, 1.0 - fi), (1, fi)] {
             for (dk, wk) in [(0, 1.0 - fk), (1, fk)] {
@@ -622,8 +601,8 @@ pub(super) fn zenith_index(mu_s: f64) -> f64 {
 }
 
 /// Altitude of row `i` of `n` over an atmosphere `top_m` high: spacing
-/// as the power 2.5, dense low down (the Earth's 13 rows at 0, 0.2, 1.1,
-/// 3.1, 6.4 … km), where the haze lies (scale height about a kilometre)
+/// as the power 2.5, dense low down (the Earth's rows at 0, 0.55, 3.1,
+/// 8.6, 17.7 … km), where the haze lies (scale height about a kilometre)
 /// and the light at sunset changes fastest with height (square spacing
 /// put the second row at 2 km; see BENCHMARKS.md).
 pub(super) fn altitude_of(i: usize, n: usize, top_m: f64) -> f64 {

@@ -35,7 +35,7 @@ use super::optics::{MsTable, SkyIrradiance, Spectrum, NODES};
 pub(super) const MAX_FILES: usize = 8;
 
 /// The first bytes of every file (the format's version in its last).
-const MAGIC: &[u8; 8] = b"SKYMDL\x00\x02";
+const MAGIC: &[u8; 8] = b"SKYMDL\x00\x01";
 
 /// The folder the tables go to, if any (see the module's documentation).
 pub(super) fn default_folder() -> Option<PathBuf> {
