@@ -304,10 +304,23 @@ impl SkyModel {
     /// magnitude within a pixel, and one value at its centre is off by as
     /// much.
     pub fn image(&self, camera: &Camera, width: u32, height: u32) -> RgbImage {
+        // Which side of the horizon each pixel corner looks to (`None`:
+        // no ray), once per corner: four pixels share it.
+        let corners_wide = width as usize + 1;
+        let corners: Vec<Option<bool>> = (0..corners_wide * (height as usize + 1))
+            .into_par_iter()
+            .map(|c| {
+                let (x, y) = ((c % corners_wide) as f64, (c / corners_wide) as f64);
+                self.above_horizon(camera, x, y)
+            })
+            .collect();
         let pixels = (0..width as usize * height as usize)
             .into_par_iter()
             .map(|i| {
-                let (px, py) = ((i % width as usize) as f64, (i / width as usize) as f64);
+                let (x, y) = (i % width as usize, i / width as usize);
+                let (px, py) = (x as f64, y as f64);
+                let corner = |dx: usize, dy: usize| corners[(y + dy) * corners_wide + x + dx];
+                let crossed = [corner(0, 0), corner(1, 0), corner(0, 1), corner(1, 1)];
                 let at = |fx: f64, fy: f64| {
                     camera
                         .direction(px + fx, py + fy)
@@ -327,7 +340,12 @@ impl SkyModel {
                     }
                     sum.map(|s| s / (grid * grid) as f64)
                 };
-                if let Some(xyz) = self.across_the_horizon(camera, px, py) {
+                let crossed =
+                    crossed.iter().all(Option::is_some) && crossed.iter().any(|&c| c != crossed[0]);
+                if let Some(xyz) = crossed
+                    .then(|| self.across_the_horizon(camera, px, py))
+                    .flatten()
+                {
                     return xyz_to_rec709(xyz).map(|v| v as f32);
                 }
                 let four = [(0.25, 0.25), (0.75, 0.25), (0.25, 0.75), (0.75, 0.75)]
@@ -350,11 +368,19 @@ impl SkyModel {
             pixels,
         }
     }
-}
 
-impl SkyModel {
-    /// The mean of a pixel that the horizon crosses, or `None` where it
-    /// does not (or a corner has no ray): per column of
+    /// Whether the view through `camera` at pixel position (`x`, `y`)
+    /// lies at or above the horizon; `None` where the camera has no ray.
+    fn above_horizon(&self, camera: &Camera, x: f64, y: f64) -> Option<bool> {
+        let horizon = self.rows.horizon_rad.sin();
+        camera
+            .direction(x, y)
+            .map(|d| d.normalize().dot(self.frame[0]) >= horizon)
+    }
+
+    /// The mean of a pixel that the horizon crosses (its corners on both
+    /// sides, [`Self::image`] checks), or `None` where a column's end has
+    /// no ray: per column of
     /// [`EDGE_SAMPLES`], the point where the horizon crosses it is found
     /// by bisection, and the sky above it and the ground below it are
     /// each averaged over their own length. An observer a few metres up
@@ -362,22 +388,7 @@ impl SkyModel {
     /// a pixel just below it holds a sliver of the bright horizon sky,
     /// which no grid of sample points finds.
     fn across_the_horizon(&self, camera: &Camera, px: f64, py: f64) -> Option<[f64; 3]> {
-        let zenith = self.frame[0];
-        let horizon = self.rows.horizon_rad.sin();
-        let above = |fx: f64, fy: f64| {
-            camera
-                .direction(px + fx, py + fy)
-                .map(|d| d.normalize().dot(zenith) >= horizon)
-        };
-        let corners = [
-            above(0.0, 0.0)?,
-            above(1.0, 0.0)?,
-            above(0.0, 1.0)?,
-            above(1.0, 1.0)?,
-        ];
-        if corners.iter().all(|&a| a == corners[0]) {
-            return None;
-        }
+        let above = |fx: f64, fy: f64| self.above_horizon(camera, px + fx, py + fy);
         let mut sum = [0.0; 3];
         // The mean over a part of a column, from its end at the horizon
         // (`edge`) a length `length` away (signed), with points crowding
