@@ -3,7 +3,6 @@
 //! 2008), the sky's irradiance on the ground by order, and the tables of
 //! one atmosphere kept for the next renderer of the same optics.
 
-use std::f64::consts::PI;
 use std::path::PathBuf;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex, OnceLock};
@@ -13,12 +12,12 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::optics::{
-    altitude_of, node_wavelength, split, view_cosine_index, view_cosine_of, view_zenith_cosine_of,
-    zenith_cosine_of, MsTable, Optics, Phases, Quadrature, SkyIrradiance, Sources, Spectrum,
-    GROUND_DIRECTIONS_HIGHER, GROUPS, MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_AT_CORE,
-    MS_DIRECTIONS_AT_SUN, MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS,
-    MS_VIEW_ZENITHS, MS_ZENITHS, NODES, SUN_CAP_COSINE, SUN_CORE_CAP_COSINE, SUN_INNER_CAP_COSINE,
-    TABLE_STEPS, TABLE_STEPS_HIGHER,
+    altitude_of, node_wavelength, split, view_azimuth_of, view_cosine_index, view_cosine_of,
+    view_zenith_cosine_of, zenith_cosine_of, MsTable, Optics, Phases, Quadrature, SkyIrradiance,
+    Sources, Spectrum, GROUND_DIRECTIONS_HIGHER, GROUPS, MS_ALTITUDES, MS_DIRECTIONS,
+    MS_DIRECTIONS_AT_CORE, MS_DIRECTIONS_AT_SUN, MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES,
+    MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES, SUN_CAP_COSINE, SUN_CORE_CAP_COSINE,
+    SUN_INNER_CAP_COSINE, TABLE_STEPS, TABLE_STEPS_HIGHER,
 };
 use super::stored;
 use crate::render::lanes::LaneTable;
@@ -26,7 +25,7 @@ use crate::render::medium::{Lanes, Medium, SpectralLanes, LANES};
 
 /// One solar zenith's entries of an [`MsTable`]: the ν table's and the
 /// view sums'.
-type ZenithEntries = (Vec<[Spectrum; 2]>, Vec<[[Spectrum; 2]; 2]>);
+type ZenithEntries = (Vec<[Spectrum; 2]>, Vec<[Spectrum; 2]>);
 
 /// Whether a build of the tables is to be given up: asked once per table
 /// and solar zenith (a few tens of milliseconds of work apart).
@@ -106,31 +105,12 @@ impl MsTable {
                     phases
                 };
                 let to_sun = phases_toward(sun);
-                let to_view: Vec<Vec<_>> = views.iter().map(|&v| normalised_toward(v)).collect();
-                // Views at each tabulated zenith, at azimuths from the sun
-                // spread over a half turn (the other half mirrors them),
-                // and their places in the ν table.
-                let zenith_views: Vec<(DVec3, f64)> = (0..MS_VIEW_ZENITHS)
-                    .flat_map(|z| {
-                        let mu = view_zenith_cosine_of(z);
-                        let sin = (1.0 - mu * mu).max(0.0).sqrt();
-                        (0..MS_VIEW_AZIMUTHS).map(move |b| {
-                            let phi = PI * (b as f64 + 0.5) / MS_VIEW_AZIMUTHS as f64;
-                            let v = DVec3::new(sin * phi.cos(), sin * phi.sin(), mu);
-                            (v, view_cosine_index(v.dot(sun)))
-                        })
-                    })
-                    .collect();
-                let to_zenith_view: Vec<Vec<_>> = zenith_views
-                    .iter()
-                    .map(|&(v, _)| normalised_toward(v))
-                    .collect();
-                let rows: Vec<ZenithEntries> = (0..MS_ALTITUDES)
+                // Per altitude, each direction's light times its solid angle.
+                let arriving: Vec<Vec<Spectrum>> = (0..MS_ALTITUDES)
                     .map(|i| {
                         let r = planet_radius_m + altitude_of(i, MS_ALTITUDES, top_m);
                         let origin = DVec3::new(0.0, 0.0, r);
-                        // Each direction's light times its solid angle.
-                        let arriving: Vec<Spectrum> = points
+                        points
                             .iter()
                             .zip(&to_sun)
                             .map(|(&(dir, weight, _), (pr, pa))| match previous {
@@ -161,55 +141,59 @@ impl MsTable {
                                     g.isotropic.map(|v| weight * v)
                                 }
                             })
-                            .collect();
-                        let nu_row = |to_view: &[Vec<(Spectrum, Spectrum)>]| {
-                            to_view
-                                .chunks(2)
-                                .map(|pair| {
-                                    let mut out = [[0.0; NODES]; 2];
-                                    for phases in pair {
-                                        for (l, (pr, pa)) in arriving.iter().zip(phases) {
-                                            for n in 0..NODES {
-                                                out[0][n] += l[n] * pr[n];
-                                                out[1][n] += l[n] * pa[n];
-                                            }
-                                        }
-                                    }
-                                    out.map(|o| o.map(|v| 0.5 * v))
-                                })
-                                .collect::<Vec<[Spectrum; 2]>>()
-                        };
-                        let row = nu_row(&to_view);
-                        // Per view at a tabulated zenith and azimuth: J
-                        // there and the ν table at its angle to the sun.
-                        let factors = zenith_views
-                            .iter()
-                            .zip(&to_zenith_view)
-                            .map(|((_, index), phases)| {
-                                let mut direct = [[0.0; NODES]; 2];
-                                for (l, (pr, pa)) in arriving.iter().zip(phases) {
-                                    for n in 0..NODES {
-                                        direct[0][n] += l[n] * pr[n];
-                                        direct[1][n] += l[n] * pa[n];
-                                    }
-                                }
-                                let (a, f) = split(*index, MS_VIEW_ANGLES);
-                                let (lo, hi) = (&row[a], &row[a + 1]);
-                                let table = std::array::from_fn(|x| {
-                                    std::array::from_fn(|n| lo[x][n] + f * (hi[x][n] - lo[x][n]))
-                                });
-                                [direct, table]
-                            })
-                            .collect::<Vec<[[Spectrum; 2]; 2]>>();
-                        (row, factors)
+                            .collect()
                     })
                     .collect();
-                let (mut values, mut factors) = (Vec::new(), Vec::new());
-                for (row, f) in rows {
-                    values.extend(row);
-                    factors.extend(f);
-                }
-                Some((values, factors))
+                // Per altitude, Σ_ω L(ω) P(ω·v) Δω summed over `views` (R
+                // and A): one view's phase functions at a time, read by
+                // every altitude's light.
+                let sums = |views: &[DVec3]| -> Vec<[Spectrum; 2]> {
+                    let mut out = vec![[[0.0; NODES]; 2]; MS_ALTITUDES];
+                    for &v in views {
+                        let phases = normalised_toward(v);
+                        for (o, light) in out.iter_mut().zip(&arriving) {
+                            let (mut r, mut a) = ([0.0; NODES], [0.0; NODES]);
+                            for (l, (pr, pa)) in light.iter().zip(&phases) {
+                                add_product(&mut r, l, pr);
+                                add_product(&mut a, l, pa);
+                            }
+                            add_product(&mut o[0], &r, &[1.0; NODES]);
+                            add_product(&mut o[1], &a, &[1.0; NODES]);
+                        }
+                    }
+                    out
+                };
+                // The ν table's views in pairs (each weighted ½), then the
+                // views at each tabulated zenith, at azimuths from the sun
+                // spread over a half turn (the other half mirrors them): J
+                // there (the ν table's at its angle to the sun is read
+                // when the factors are made).
+                let nu_sums: Vec<Vec<[Spectrum; 2]>> = views
+                    .chunks(2)
+                    .map(|pair| {
+                        let mut out = sums(pair);
+                        for o in &mut out {
+                            *o = o.map(|x| x.map(|v| 0.5 * v));
+                        }
+                        out
+                    })
+                    .collect();
+                let zenith_sums: Vec<Vec<[Spectrum; 2]>> = (0..MS_VIEW_ZENITHS * MS_VIEW_AZIMUTHS)
+                    .map(|view| {
+                        sums(&[zenith_view(
+                            view / MS_VIEW_AZIMUTHS,
+                            view % MS_VIEW_AZIMUTHS,
+                        )])
+                    })
+                    .collect();
+                // Altitude by altitude: its ν row, then its views' sums.
+                let values = (0..MS_ALTITUDES)
+                    .flat_map(|i| nu_sums.iter().map(move |at| at[i]))
+                    .collect();
+                let sums = (0..MS_ALTITUDES)
+                    .flat_map(|i| zenith_sums.iter().map(move |at| at[i]))
+                    .collect();
+                Some((values, sums))
             })
             .collect::<Option<_>>()?;
         // Reordered to (altitude, zenith, ν) and (altitude, zenith, μ_v).
@@ -244,26 +228,50 @@ impl MsTable {
     /// Every number the orders add up: the ν table's, then the zenith
     /// sums' (the factors follow from them).
     fn numbers(&self) -> impl Iterator<Item = &f64> {
-        let sums = self.zenith_sums.iter().flatten().flatten().flatten();
+        let sums = self.zenith_sums.iter().flatten().flatten();
         self.values.iter().flatten().flatten().chain(sums)
     }
 
     /// [`Self::numbers`], to change.
     fn numbers_mut(&mut self) -> impl Iterator<Item = &mut f64> {
-        let sums = self.zenith_sums.iter_mut().flatten().flatten().flatten();
+        let sums = self.zenith_sums.iter_mut().flatten().flatten();
         self.values.iter_mut().flatten().flatten().chain(sums)
     }
 
-    /// The zenith factors from the zenith sums.
+    /// The zenith factors from the zenith sums: each the sum at its view
+    /// over the ν table's at the view's angle to the sun (linear in the
+    /// table's index, as its look-ups are).
     fn update_factors(&mut self) {
+        let views = MS_VIEW_ZENITHS * MS_VIEW_AZIMUTHS;
+        let indices: Vec<Vec<f64>> = (0..MS_ZENITHS)
+            .map(|k| {
+                let mu_s = zenith_cosine_of(k as f64);
+                let sun = DVec3::new((1.0 - mu_s * mu_s).max(0.0).sqrt(), 0.0, mu_s);
+                (0..views)
+                    .map(|view| {
+                        let v = zenith_view(view / MS_VIEW_AZIMUTHS, view % MS_VIEW_AZIMUTHS);
+                        view_cosine_index(v.dot(sun))
+                    })
+                    .collect()
+            })
+            .collect();
         self.zenith_factors = self
             .zenith_sums
             .iter()
-            .map(|[direct, table]| {
+            .enumerate()
+            .map(|(cell, direct)| {
+                let (slice, view) = (cell / views, cell % views);
+                let k = slice % MS_ZENITHS;
+                let (a, f) = split(indices[k][view], MS_VIEW_ANGLES);
+                let (lo, hi) = (
+                    &self.values[slice * MS_VIEW_ANGLES + a],
+                    &self.values[slice * MS_VIEW_ANGLES + a + 1],
+                );
                 std::array::from_fn(|x| {
                     std::array::from_fn(|n| {
-                        if table[x][n] > 0.0 {
-                            direct[x][n] / table[x][n]
+                        let table = lo[x][n] + f * (hi[x][n] - lo[x][n]);
+                        if table > 0.0 {
+                            (direct[x][n] / table) as f32
                         } else {
                             1.0
                         }
@@ -272,6 +280,26 @@ impl MsTable {
             })
             .collect();
     }
+}
+
+/// `sum` += `a` `b`, element by element (written so as to compile to
+/// vector instructions: the sums over the sphere are most of a table's
+/// making).
+#[inline]
+fn add_product(sum: &mut Spectrum, a: &Spectrum, b: &Spectrum) {
+    for ((s, a), b) in sum.iter_mut().zip(a).zip(b) {
+        *s += a * b;
+    }
+}
+
+/// The view of the zenith factors' view zenith `z` and azimuth column `b`
+/// ([`view_zenith_cosine_of`], [`view_azimuth_of`]), the sun in the x–z
+/// plane ([`Optics::with_sun_at`]).
+fn zenith_view(z: usize, b: usize) -> DVec3 {
+    let mu = view_zenith_cosine_of(z);
+    let sin = (1.0 - mu * mu).max(0.0).sqrt();
+    let phi = view_azimuth_of(b);
+    DVec3::new(sin * phi.cos(), sin * phi.sin(), mu)
 }
 
 impl SkyIrradiance {
@@ -407,14 +435,17 @@ fn scattering_orders(
         ],
         &[&core_cells, &at_sun_cells, &near_cells, &far_cells],
     );
-    // The orders past the second are summed about the sun too: in a dust
-    // or haze thick enough, the light scattered twice is still an aureole
-    // (summed over 32 even directions, cells of 20°, the third order near
-    // the sun at Mars sunset added a sixth of the path tracer's). The
-    // directions outside the cap stay as dense as the second order's:
-    // with 32 there, turning with the sun, the low sky at twilight read
-    // 8 % off, not 3 %.
-    let higher = Quadrature::about_the_sun(
+    // The third order is summed over the same rings: in a dust or haze
+    // thick enough, the light scattered twice is still an aureole, and the
+    // third order's is the product of three peaks (with the rings of 4°
+    // cells alone inside 40°, the first frame at Mars sunset read 0.95×
+    // the path tracer's within 5° of the sun). The orders past it, blurred
+    // by every scattering, are summed about the sun more coarsely (over
+    // 32 even directions, cells of 20°, the third order near the sun at
+    // Mars sunset had added a sixth of the path tracer's; outside the cap
+    // as dense as the second order's: with 32 there, turning with the
+    // sun, the low sky at twilight read 8 % off, not 3 %).
+    let later = Quadrature::about_the_sun(
         (MS_DIRECTIONS_NEAR_SUN, MS_DIRECTIONS),
         SUN_CAP_COSINE,
         [&near_cells, &far_cells],
@@ -434,14 +465,22 @@ fn scattering_orders(
     let higher_up = Quadrature::even(GROUND_DIRECTIONS_HIGHER, optics.phases);
     let mut table = MsTable::scattered(optics, None, &first, cancelled)?;
     let mut sky = SkyIrradiance::scattered(optics, None, &first_up, cancelled)?;
-    let (mut psi, mut irradiance) = (table.clone(), sky.clone());
-    let (mut last_table, mut last_sky) = (table.clone(), sky.clone());
-    let (mut older_table, mut older_sky) = (table.clone(), sky.clone());
-    for _ in 2..ORDERS {
+    // Only the order being marched needs its factors; the sum and the
+    // two orders before it keep their numbers alone (the factors are
+    // about a third of a table).
+    let numbers_of = |t: &MsTable| MsTable {
+        zenith_factors: Vec::new(),
+        ..t.clone()
+    };
+    let (mut psi, mut irradiance) = (numbers_of(&table), sky.clone());
+    let (mut last_table, mut last_sky) = (numbers_of(&table), sky.clone());
+    let (mut older_table, mut older_sky) = (numbers_of(&table), sky.clone());
+    for next in 3..=ORDERS {
+        let quadrature = if next == 3 { &first } else { &later };
         // E_n from J_n, then J_{n+1} from L_n (J_n and the ground lit by
         // E_{n−1}).
         let next_sky = SkyIrradiance::scattered(optics, Some(&table), &higher_up, cancelled)?;
-        let next_table = MsTable::scattered(optics, Some((&table, &sky)), &higher, cancelled)?;
+        let next_table = MsTable::scattered(optics, Some((&table, &sky)), quadrature, cancelled)?;
         for (sum, v) in psi.numbers_mut().zip(next_table.numbers()) {
             *sum += v;
         }
@@ -454,7 +493,7 @@ fn scattering_orders(
             *sum += v;
         }
         (older_table, older_sky) = (last_table, last_sky);
-        (last_table, last_sky) = (table, sky);
+        (last_table, last_sky) = (numbers_of(&table), sky);
         (table, sky) = (next_table, next_sky);
     }
     // The field's ratio of its last two orders, over the ν table; the

@@ -3,7 +3,8 @@
 //! lookup, tens of milliseconds, not their making, half a second.
 //!
 //! A file holds one atmosphere's Ψ table, its zenith factors and the sky's
-//! irradiance on the ground, as little-endian `f64`s, after the build that
+//! irradiance on the ground, as little-endian `f64`s (the factors as the
+//! `f32`s they are kept in), after the build that
 //! made them and the optics they were made of (the [`fingerprint`] the
 //! in-memory cache compares), and before a checksum of all of it. It is
 //! read back only if every one of those matches bit for bit and every
@@ -31,11 +32,11 @@ use std::time::{SystemTime, UNIX_EPOCH};
 
 use super::optics::{MsTable, SkyIrradiance, Spectrum, NODES};
 
-/// Files kept in the folder, at most (each about 8 MB).
+/// Files kept in the folder, at most (each about 16 MB).
 pub(super) const MAX_FILES: usize = 8;
 
 /// The first bytes of every file (the format's version in its last).
-const MAGIC: &[u8; 8] = b"SKYMDL\x00\x01";
+const MAGIC: &[u8; 8] = b"SKYMDL\x00\x03";
 
 /// The folder the tables go to, if any (see the module's documentation).
 pub(super) fn default_folder() -> Option<PathBuf> {
@@ -110,17 +111,29 @@ fn path_of(folder: &Path, header: &[u8]) -> PathBuf {
     folder.join(format!("{:016x}.bin", Fnv::new().bytes(header).0))
 }
 
-/// Every number a file holds after its header, in order.
+/// Every number a file holds after its header, in order (the factors
+/// widened, exactly).
+#[cfg(test)]
 pub(super) fn numbers<'a>(
     ms: &'a MsTable,
     sky: &'a SkyIrradiance,
 ) -> impl Iterator<Item = f64> + 'a {
-    let values = ms.values.iter().flatten().flatten();
+    let values = ms.values.iter().flatten().flatten().copied();
     let factors = ms.zenith_factors.iter().flatten().flatten();
     values
-        .chain(factors)
-        .chain(sky.values.iter().flatten())
-        .copied()
+        .chain(factors.map(|&f| f64::from(f)))
+        .chain(sky.values.iter().flatten().copied())
+}
+
+/// The bytes a file holds after its header, before its checksum.
+fn body(ms: &MsTable, sky: &SkyIrradiance) -> Vec<u8> {
+    let wide = |v: &f64| v.to_le_bytes();
+    let mut out = Vec::new();
+    out.extend(ms.values.iter().flatten().flatten().flat_map(wide));
+    let factors = ms.zenith_factors.iter().flatten().flatten();
+    out.extend(factors.flat_map(|f| f.to_le_bytes()));
+    out.extend(sky.values.iter().flatten().flat_map(wide));
+    out
 }
 
 /// Writes the tables of `fingerprint`'s optics into `folder` (made if
@@ -140,13 +153,10 @@ pub(super) fn store(
         &path,
         |e| e,
         |w| {
-            let mut hash = Fnv::new().bytes(&header);
+            let body = body(ms, sky);
+            let hash = Fnv::new().bytes(&header).bytes(&body);
             w.write_all(&header)?;
-            for v in numbers(ms, sky) {
-                let bytes = v.to_le_bytes();
-                hash = hash.bytes(&bytes);
-                w.write_all(&bytes)?;
-            }
+            w.write_all(&body)?;
             w.write_all(&hash.0.to_le_bytes())
         },
     )?;
@@ -194,30 +204,54 @@ fn parse(
         cells * MS_VIEW_ZENITHS * MS_VIEW_AZIMUTHS,
         MS_ZENITHS,
     ];
-    let floats: usize = 2 * NODES * (counts[0] + counts[1]) + NODES * counts[2];
-    if bytes.len() != header.len() + 8 * floats + 8 || !bytes.starts_with(header) {
+    let (wide, narrow) = (
+        2 * NODES * counts[0] + NODES * counts[2],
+        2 * NODES * counts[1],
+    );
+    if bytes.len() != header.len() + 8 * wide + 4 * narrow + 8 || !bytes.starts_with(header) {
         return None;
     }
     let (body, sum) = bytes.split_at(bytes.len() - 8);
     if Fnv::new().bytes(body).0.to_le_bytes() != sum {
         return None;
     }
-    let mut values = body[header.len()..]
-        .chunks_exact(8)
-        .map(|c| f64::from_le_bytes(c.try_into().unwrap_or_default()));
-    if !values.clone().all(f64::is_finite) {
+    let body = &body[header.len()..];
+    let (values, rest) = body.split_at(8 * 2 * NODES * counts[0]);
+    let (factors, sky) = rest.split_at(4 * narrow);
+    let f64s = |bytes: &[u8]| -> Option<Vec<f64>> {
+        let v: Vec<f64> = bytes
+            .chunks_exact(8)
+            .map(|c| f64::from_le_bytes(c.try_into().unwrap_or_default()))
+            .collect();
+        v.iter().all(|x| x.is_finite()).then_some(v)
+    };
+    let factors: Vec<f32> = factors
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes(c.try_into().unwrap_or_default()))
+        .collect();
+    if !factors.iter().all(|x| x.is_finite()) {
         return None;
     }
-    let mut spectrum = || -> Spectrum { std::array::from_fn(|_| values.next().unwrap_or(0.0)) };
+    let spectra = |v: Vec<f64>| -> Vec<Spectrum> {
+        v.chunks_exact(NODES)
+            .map(|c| std::array::from_fn(|n| c[n]))
+            .collect()
+    };
+    let pairs = |v: Vec<Spectrum>| -> Vec<[Spectrum; 2]> {
+        v.chunks_exact(2).map(|c| [c[0], c[1]]).collect()
+    };
     let ms = MsTable {
         planet_radius_m,
         top_m,
-        values: (0..counts[0]).map(|_| [spectrum(), spectrum()]).collect(),
+        values: pairs(spectra(f64s(values)?)),
         zenith_sums: Vec::new(),
-        zenith_factors: (0..counts[1]).map(|_| [spectrum(), spectrum()]).collect(),
+        zenith_factors: factors
+            .chunks_exact(2 * NODES)
+            .map(|c| [0, 1].map(|x| std::array::from_fn(|n| c[x * NODES + n])))
+            .collect(),
     };
     let sky = SkyIrradiance {
-        values: (0..counts[2]).map(|_| spectrum()).collect(),
+        values: spectra(f64s(sky)?),
     };
     Some((ms, sky))
 }
