@@ -143,8 +143,9 @@ pub struct SkyModel {
     /// more than once at the observer, at each of the ν table's view–sun
     /// cosines ([`aureole_shape`]).
     aureole: [Spectrum; MS_VIEW_ANGLES],
-    /// XYZ per unit response at each node: K_M ∫ E_sun h_k x̄ dλ.
-    xyz_weights: [[f64; 3]; NODES],
+    /// Per colour (X, Y, Z), its value per unit response at each node:
+    /// K_M ∫ E_sun h_k x̄ dλ.
+    xyz_weights: [Spectrum; 3],
 }
 
 /// The model's light field: the radiance arriving at any point of the
@@ -310,14 +311,10 @@ impl SkyModel {
         let nu = dir.dot(self.sun_direction);
         let (pr, pa) = self.tables.phases.at(nu);
         let shape = shape_at(&self.aureole, nu);
-        let mut xyz = [0.0; 3];
-        for n in 0..NODES {
-            let response = pr[n] * ar[n] + pa[n] * aa[n] + b[n] * shape[n];
-            for (v, w) in xyz.iter_mut().zip(self.xyz_weights[n]) {
-                *v += response * w;
-            }
-        }
-        xyz
+        let response: Spectrum =
+            std::array::from_fn(|n| pr[n] * ar[n] + pa[n] * aa[n] + b[n] * shape[n]);
+        self.xyz_weights
+            .map(|weights| response.iter().zip(weights).map(|(r, w)| r * w).sum())
     }
 
     /// The model seen through `camera`: linear Rec.709, Y in cd m⁻²,
@@ -523,7 +520,7 @@ fn xyz_weights(
     lane_table: &LaneTable,
     cmf: &ColourMatching,
     nodes: &[f64],
-) -> [[f64; 3]; NODES] {
+) -> [Spectrum; 3] {
     // The sun at the grid's wavelengths, four at a time.
     let grid: Vec<f64> = cmf.grid_nm().collect();
     let sun: Vec<f64> = grid
@@ -534,7 +531,7 @@ fn xyz_weights(
         })
         .collect();
     let step = nodes[1] - nodes[0];
-    std::array::from_fn(|k| {
+    let per_node: [[f64; 3]; NODES] = std::array::from_fn(|k| {
         let xyz = cmf.integrate(|w| {
             let i = grid.partition_point(|&g| g < w);
             let hat = (1.0 - (w - nodes[k]).abs() / step).max(0.0);
@@ -547,7 +544,8 @@ fn xyz_weights(
             sun.get(i).copied().unwrap_or(0.0) * hat
         });
         xyz.map(|v| K_M * v)
-    })
+    });
+    std::array::from_fn(|c| std::array::from_fn(|k| per_node[k][c]))
 }
 
 /// The observer's sky table's rows: elevations crowding about the horizon
@@ -676,7 +674,7 @@ mod tests {
                     let dir = direction(&[zenith, x, y], elevation, azimuth_deg.to_radians());
                     let response = field.radiance(medium, renderer.observer_m, dir);
                     let exact: f64 = (0..NODES)
-                        .map(|n| response[n] * model.xyz_weights[n][1])
+                        .map(|n| response[n] * model.xyz_weights[1][n])
                         .sum();
                     pairs.push((exact, model.xyz(dir)[1]));
                 }
@@ -718,7 +716,7 @@ mod tests {
             let field = ModelField::from_tables(tables, sun);
             let luminance = |response: [f64; NODES]| -> f64 {
                 (0..NODES)
-                    .map(|n| response[n] * model.xyz_weights[n][1])
+                    .map(|n| response[n] * model.xyz_weights[1][n])
                     .sum()
             };
             let (mut shortened, mut worst) = (0, 0.0_f64);
@@ -770,7 +768,7 @@ mod tests {
                 let dir = direction(&model.frame, elevation, azimuth_deg.to_radians());
                 let response = field.radiance(medium, renderer.observer_m, dir);
                 let exact: f64 = (0..NODES)
-                    .map(|n| response[n] * model.xyz_weights[n][1])
+                    .map(|n| response[n] * model.xyz_weights[1][n])
                     .sum();
                 let table = model.xyz(dir)[1];
                 worst = worst.max((table - exact).abs() / exact);

@@ -30,7 +30,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 use std::time::{SystemTime, UNIX_EPOCH};
 
-use super::optics::{MsTable, SkyIrradiance, Spectrum, NODES};
+use super::optics::{Factor, MsTable, SkyIrradiance, Spectrum, NODES};
 
 /// Files kept in the folder, at most (each about 16 MB).
 pub(super) const MAX_FILES: usize = 8;
@@ -218,41 +218,42 @@ fn parse(
     let body = &body[header.len()..];
     let (values, rest) = body.split_at(8 * 2 * NODES * counts[0]);
     let (factors, sky) = rest.split_at(4 * narrow);
-    let f64s = |bytes: &[u8]| -> Option<Vec<f64>> {
-        let v: Vec<f64> = bytes
-            .chunks_exact(8)
-            .map(|c| f64::from_le_bytes(c.try_into().unwrap_or_default()))
-            .collect();
-        v.iter().all(|x| x.is_finite()).then_some(v)
-    };
-    let factors: Vec<f32> = factors
-        .chunks_exact(4)
-        .map(|c| f32::from_le_bytes(c.try_into().unwrap_or_default()))
+    // Each number read straight into its place; a number not finite
+    // rejects the file.
+    let f64_at = |c: &[u8]| f64::from_le_bytes(c.try_into().unwrap_or_default());
+    let spectrum =
+        |bytes: &[u8]| -> Spectrum { std::array::from_fn(|n| f64_at(&bytes[8 * n..8 * n + 8])) };
+    let width = 8 * NODES;
+    let values: Vec<[Spectrum; 2]> = values
+        .chunks_exact(2 * width)
+        .map(|c| [spectrum(&c[..width]), spectrum(&c[width..])])
         .collect();
-    if !factors.iter().all(|x| x.is_finite()) {
+    let factors: Vec<[Factor; 2]> = factors
+        .chunks_exact(2 * 4 * NODES)
+        .map(|c| {
+            [0, 1].map(|x| {
+                std::array::from_fn(|n| {
+                    let at = 4 * (x * NODES + n);
+                    f32::from_le_bytes(c[at..at + 4].try_into().unwrap_or_default())
+                })
+            })
+        })
+        .collect();
+    let sky: Vec<Spectrum> = sky.chunks_exact(width).map(spectrum).collect();
+    let finite = values.iter().flatten().flatten().all(|v| v.is_finite())
+        && factors.iter().flatten().flatten().all(|v| v.is_finite())
+        && sky.iter().flatten().all(|v| v.is_finite());
+    if !finite {
         return None;
     }
-    let spectra = |v: Vec<f64>| -> Vec<Spectrum> {
-        v.chunks_exact(NODES)
-            .map(|c| std::array::from_fn(|n| c[n]))
-            .collect()
-    };
-    let pairs = |v: Vec<Spectrum>| -> Vec<[Spectrum; 2]> {
-        v.chunks_exact(2).map(|c| [c[0], c[1]]).collect()
-    };
     let ms = MsTable {
         planet_radius_m,
         top_m,
-        values: pairs(spectra(f64s(values)?)),
+        values,
         zenith_sums: Vec::new(),
-        zenith_factors: factors
-            .chunks_exact(2 * NODES)
-            .map(|c| [0, 1].map(|x| std::array::from_fn(|n| c[x * NODES + n])))
-            .collect(),
+        zenith_factors: factors,
     };
-    let sky = SkyIrradiance {
-        values: spectra(f64s(sky)?),
-    };
+    let sky = SkyIrradiance { values: sky };
     Some((ms, sky))
 }
 
