@@ -643,6 +643,21 @@ mod tests {
     use crate::render::Renderer;
     use crate::Scene;
 
+    /// The model of `renderer`'s scene and its light field, on the tables
+    /// its atmosphere shares.
+    fn model_and_field(renderer: &Renderer) -> (SkyModel, ModelField) {
+        let model = renderer.sky_model();
+        let field = ModelField::from_tables(Arc::clone(&model.tables), renderer.sun_direction);
+        (model, field)
+    }
+
+    /// The luminance of a response at the model's nodes.
+    fn luminance(model: &SkyModel, response: [f64; NODES]) -> f64 {
+        (0..NODES)
+            .map(|n| response[n] * model.xyz_weights[1][n])
+            .sum()
+    }
+
     /// The observer's table against the march it tabulates, at elevations
     /// about the horizon (where the sky's light drops by two orders of
     /// magnitude to the ground's), for an observer on the ground and one
@@ -651,17 +666,8 @@ mod tests {
     fn the_view_table_matches_its_march_about_the_horizon() {
         for name in ["sunset", "space"] {
             let renderer = Renderer::new(&Scene::preset(name).unwrap()).unwrap();
-            let (medium, sun) = (&renderer.medium, renderer.sun_direction);
-            let tables = Arc::new(ModelTables::new(medium, &renderer.lane_table));
-            let model = SkyModel::from_tables(
-                Arc::clone(&tables),
-                medium,
-                &renderer.lane_table,
-                renderer.cmf,
-                sun,
-                renderer.observer_m,
-            );
-            let field = ModelField::from_tables(tables, sun);
+            let medium = &renderer.medium;
+            let (model, field) = model_and_field(&renderer);
             let [zenith, x, y] = model.frame;
             // (exact, table) luminance per view.
             let mut pairs = Vec::new();
@@ -673,10 +679,7 @@ mod tests {
                 for azimuth_deg in [30.0_f64, 90.0, 150.0] {
                     let dir = direction(&[zenith, x, y], elevation, azimuth_deg.to_radians());
                     let response = field.radiance(medium, renderer.observer_m, dir);
-                    let exact: f64 = (0..NODES)
-                        .map(|n| response[n] * model.xyz_weights[1][n])
-                        .sum();
-                    pairs.push((exact, model.xyz(dir)[1]));
+                    pairs.push((luminance(&model, response), model.xyz(dir)[1]));
                 }
             }
             // Off by the view's own light, or by a thousandth of the
@@ -703,22 +706,8 @@ mod tests {
     fn short_view_rays_lose_nothing_to_their_fewer_steps() {
         for name in ["sunset", "mars-sunset", "midday"] {
             let renderer = Renderer::new(&Scene::preset(name).unwrap()).unwrap();
-            let (medium, sun) = (&renderer.medium, renderer.sun_direction);
-            let tables = ModelTables::shared(medium, &renderer.lane_table);
-            let model = SkyModel::from_tables(
-                Arc::clone(&tables),
-                medium,
-                &renderer.lane_table,
-                renderer.cmf,
-                sun,
-                renderer.observer_m,
-            );
-            let field = ModelField::from_tables(tables, sun);
-            let luminance = |response: [f64; NODES]| -> f64 {
-                (0..NODES)
-                    .map(|n| response[n] * model.xyz_weights[1][n])
-                    .sum()
-            };
+            let medium = &renderer.medium;
+            let (model, field) = model_and_field(&renderer);
             let (mut shortened, mut worst) = (0, 0.0_f64);
             for row in 0..HORIZON_ROW {
                 let elevation = model.rows.elevation(row as f64);
@@ -730,14 +719,14 @@ mod tests {
                         continue;
                     }
                     shortened += 1;
-                    let full = luminance(field.radiance_marched(
-                        medium,
-                        renderer.observer_m,
-                        dir,
-                        VIEW_STEPS,
-                    ));
-                    let short =
-                        luminance(field.radiance_marched(medium, renderer.observer_m, dir, steps));
+                    let full = luminance(
+                        &model,
+                        field.radiance_marched(medium, renderer.observer_m, dir, VIEW_STEPS),
+                    );
+                    let short = luminance(
+                        &model,
+                        field.radiance_marched(medium, renderer.observer_m, dir, steps),
+                    );
                     worst = worst.max((short - full).abs() / full);
                 }
             }
@@ -758,8 +747,7 @@ mod tests {
     fn the_view_table_holds_the_aureole_between_its_columns() {
         let renderer = Renderer::new(&Scene::preset("mars-sunset").unwrap()).unwrap();
         let (medium, sun) = (&renderer.medium, renderer.sun_direction);
-        let model = renderer.sky_model();
-        let field = ModelField::from_tables(Arc::clone(&model.tables), sun);
+        let (model, field) = model_and_field(&renderer);
         let sun_elevation = sun.dot(model.frame[0]).asin();
         let mut worst = 0.0_f64;
         for lift_deg in [0.5_f64, 3.0, 6.0] {
@@ -767,9 +755,7 @@ mod tests {
                 let elevation = sun_elevation + lift_deg.to_radians();
                 let dir = direction(&model.frame, elevation, azimuth_deg.to_radians());
                 let response = field.radiance(medium, renderer.observer_m, dir);
-                let exact: f64 = (0..NODES)
-                    .map(|n| response[n] * model.xyz_weights[1][n])
-                    .sum();
+                let exact = luminance(&model, response);
                 let table = model.xyz(dir)[1];
                 worst = worst.max((table - exact).abs() / exact);
             }

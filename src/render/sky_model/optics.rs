@@ -609,6 +609,16 @@ where
     }
 }
 
+/// `sum` += `a` `b`, element by element (written so as to compile to
+/// vector instructions: the sums over the sphere are most of a table's
+/// making).
+#[inline]
+pub(super) fn add_product(sum: &mut Spectrum, a: &Spectrum, b: &Spectrum) {
+    for ((s, a), b) in sum.iter_mut().zip(a).zip(b) {
+        *s += a * b;
+    }
+}
+
 /// The sky's irradiance on the ground by solar-zenith cosine (the sun's
 /// own left out), of one scattering order or the sum of several.
 #[derive(Clone)]

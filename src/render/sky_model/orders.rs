@@ -12,12 +12,12 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::optics::{
-    altitude_of, node_wavelength, split, view_azimuth_of, view_cosine_index, view_cosine_of,
-    view_zenith_cosine_of, zenith_cosine_of, MsTable, Optics, Phases, Quadrature, SkyIrradiance,
-    Sources, Spectrum, GROUND_DIRECTIONS_HIGHER, GROUPS, MS_ALTITUDES, MS_DIRECTIONS,
-    MS_DIRECTIONS_AT_CORE, MS_DIRECTIONS_AT_SUN, MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES,
-    MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES, SUN_CAP_COSINE, SUN_CORE_CAP_COSINE,
-    SUN_INNER_CAP_COSINE, TABLE_STEPS, TABLE_STEPS_HIGHER,
+    add_product, add_scaled, altitude_of, node_wavelength, split, view_azimuth_of,
+    view_cosine_index, view_cosine_of, view_zenith_cosine_of, zenith_cosine_of, MsTable, Optics,
+    Phases, Quadrature, SkyIrradiance, Sources, Spectrum, GROUND_DIRECTIONS_HIGHER, GROUPS,
+    MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_AT_CORE, MS_DIRECTIONS_AT_SUN,
+    MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES,
+    SUN_CAP_COSINE, SUN_CORE_CAP_COSINE, SUN_INNER_CAP_COSINE, TABLE_STEPS, TABLE_STEPS_HIGHER,
 };
 use super::stored;
 use crate::render::lanes::LaneTable;
@@ -157,8 +157,8 @@ impl MsTable {
                                 add_product(&mut r, l, pr);
                                 add_product(&mut a, l, pa);
                             }
-                            add_product(&mut o[0], &r, &[1.0; NODES]);
-                            add_product(&mut o[1], &a, &[1.0; NODES]);
+                            add_scaled(&mut o[0], 1.0, &r);
+                            add_scaled(&mut o[1], 1.0, &a);
                         }
                     }
                     out
@@ -279,16 +279,6 @@ impl MsTable {
                 })
             })
             .collect();
-    }
-}
-
-/// `sum` += `a` `b`, element by element (written so as to compile to
-/// vector instructions: the sums over the sphere are most of a table's
-/// making).
-#[inline]
-fn add_product(sum: &mut Spectrum, a: &Spectrum, b: &Spectrum) {
-    for ((s, a), b) in sum.iter_mut().zip(a).zip(b) {
-        *s += a * b;
     }
 }
 
@@ -788,10 +778,7 @@ mod tests {
 
     /// The numbers of two sets of tables, bit for bit.
     fn same_numbers(a: &ModelTables, b: &ModelTables) -> bool {
-        let bits = |t: &ModelTables| -> Vec<u64> {
-            stored::numbers(&t.ms, &t.sky).map(f64::to_bits).collect()
-        };
-        bits(a) == bits(b)
+        stored::body(&a.ms, &a.sky) == stored::body(&b.ms, &b.sky)
     }
 
     /// Tables written to disk come back bit for bit in the next process

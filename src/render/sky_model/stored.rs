@@ -111,22 +111,9 @@ fn path_of(folder: &Path, header: &[u8]) -> PathBuf {
     folder.join(format!("{:016x}.bin", Fnv::new().bytes(header).0))
 }
 
-/// Every number a file holds after its header, in order (the factors
-/// widened, exactly).
-#[cfg(test)]
-pub(super) fn numbers<'a>(
-    ms: &'a MsTable,
-    sky: &'a SkyIrradiance,
-) -> impl Iterator<Item = f64> + 'a {
-    let values = ms.values.iter().flatten().flatten().copied();
-    let factors = ms.zenith_factors.iter().flatten().flatten();
-    values
-        .chain(factors.map(|&f| f64::from(f)))
-        .chain(sky.values.iter().flatten().copied())
-}
-
-/// The bytes a file holds after its header, before its checksum.
-fn body(ms: &MsTable, sky: &SkyIrradiance) -> Vec<u8> {
+/// The bytes a file holds after its header, before its checksum: every
+/// number of the tables, bit for bit.
+pub(super) fn body(ms: &MsTable, sky: &SkyIrradiance) -> Vec<u8> {
     let wide = |v: &f64| v.to_le_bytes();
     let mut out = Vec::new();
     out.extend(ms.values.iter().flatten().flatten().flat_map(wide));
