@@ -272,10 +272,12 @@ impl Camera {
     /// Image position (pixels) where direction `dir` appears, if it does.
     /// Used to check the mappings and to mark the sun in the preview.
     pub fn project(&self, dir: DVec3) -> Option<(f64, f64)> {
-        let az = dir.x.atan2(dir.y).to_degrees();
-        let el = dir.z.clamp(-1.0, 1.0).asin().to_degrees();
+        // Only the maps by angle read the azimuth and elevation.
+        let az = || dir.x.atan2(dir.y).to_degrees();
+        let el = || dir.z.clamp(-1.0, 1.0).asin().to_degrees();
         match self.kind {
             CameraKind::Equirect => {
+                let (az, el) = (az(), el());
                 let u = (az / 360.0 + 0.5).rem_euclid(1.0);
                 Some((u * self.width, (90.0 - el) / 180.0 * self.height))
             }
@@ -292,6 +294,7 @@ impl Camera {
                 ))
             }
             CameraKind::Fisheye => {
+                let (az, el) = (az(), el());
                 let r = (90.0 - el).to_radians() / self.half_fov_rad;
                 if r > 1.0 {
                     return None;

@@ -91,14 +91,34 @@ impl SunAxis {
     }
 
     pub(super) fn point(&self, r_m: f64, theta: f64, psi: f64) -> DVec3 {
-        let (sin_psi, cos_psi) = psi.sin_cos();
-        r_m * (theta.sin() * (cos_psi * self.e1 + sin_psi * self.e2) + theta.cos() * self.sun)
+        self.circle(r_m, theta).point(psi.sin_cos())
+    }
+
+    /// The circle (r, θ) about the axis.
+    pub(super) fn circle(&self, r_m: f64, theta: f64) -> Circle<'_> {
+        self.circle_at(r_m, (theta.sin(), theta.cos()))
+    }
+
+    /// The circle of radius `r_m` at the angle θ of `(sin θ, cos θ)` from
+    /// the axis.
+    pub(super) fn circle_at(&self, r_m: f64, (sin_theta, cos_theta): (f64, f64)) -> Circle<'_> {
+        Circle {
+            axis: self,
+            r_m,
+            sin_theta,
+            cos_theta,
+        }
     }
 
     /// `v` turned by `psi` about the axis.
+    #[cfg(test)]
     pub(super) fn rotate(&self, v: DVec3, psi: f64) -> DVec3 {
+        self.rotate_by(v, psi.sin_cos())
+    }
+
+    /// `v` turned about the axis by the angle ψ of `(sin ψ, cos ψ)`.
+    fn rotate_by(&self, v: DVec3, (sin_psi, cos_psi): (f64, f64)) -> DVec3 {
         let (a, b) = (v.dot(self.e1), v.dot(self.e2));
-        let (sin_psi, cos_psi) = psi.sin_cos();
         (a * cos_psi - b * sin_psi) * self.e1
             + (a * sin_psi + b * cos_psi) * self.e2
             + v.dot(self.sun) * self.sun
@@ -144,6 +164,34 @@ impl SunAxis {
             .max((self.r0_m - self.ground_m).abs());
         let dx = self.r0_m * self.horizon_angle(self.top_m);
         dr.hypot(dx)
+    }
+}
+
+/// One circle (r, θ) about a [`SunAxis`], the sine and cosine of its θ
+/// taken once: a walk places a hundred positions on it.
+pub(super) struct Circle<'a> {
+    axis: &'a SunAxis,
+    r_m: f64,
+    /// sin θ (the circle's radius over r).
+    pub(super) sin_theta: f64,
+    cos_theta: f64,
+}
+
+impl Circle<'_> {
+    /// The point at the angle ψ of `(sin ψ, cos ψ)` about the axis.
+    pub(super) fn point(&self, (sin_psi, cos_psi): (f64, f64)) -> DVec3 {
+        let (e1, e2, sun) = (self.axis.e1, self.axis.e2, self.axis.sun);
+        self.r_m * (self.sin_theta * (cos_psi * e1 + sin_psi * e2) + self.cos_theta * sun)
+    }
+
+    /// The offset of position `psi` from the observer, and the direction
+    /// from the observer to it turned back by −ψ (into the frame of ψ = 0,
+    /// where the walk's directions are drawn): one sine and cosine serve
+    /// both, sin(−ψ) = −sin ψ.
+    pub(super) fn place(&self, psi: f64) -> (DVec3, DVec3) {
+        let (sin_psi, cos_psi) = psi.sin_cos();
+        let to = self.point((sin_psi, cos_psi)) - self.axis.observer_m;
+        (to, self.axis.rotate_by(to.normalize(), (-sin_psi, cos_psi)))
     }
 }
 

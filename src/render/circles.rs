@@ -524,10 +524,8 @@ impl CircleSplatter {
         let y0 = axis.point(r, theta, 0.0);
         // A position's offset from the observer, and its camera direction
         // turned back into y₀'s frame.
-        let place = |psi: f64| {
-            let to = axis.point(r, theta, psi) - axis.observer_m;
-            (to, axis.rotate(to.normalize(), -psi))
-        };
+        let circle = axis.circle(r, theta);
+        let place = |psi: f64| circle.place(psi);
         let mut positions = [(0.0, DVec3::ZERO, DVec3::ZERO); MAX_SPLATS_PER_WALK];
         let positions = &mut positions[..self.splats];
         let phase_splats = self.splats - FIRST_SPLATS;
@@ -594,7 +592,8 @@ impl CircleSplatter {
             let Some(tr) = self.observer.transmittance(integrator, dir, t, lanes, rng) else {
                 continue;
             };
-            let weight = r * r * theta.sin() * per_sr / (t * t * point_density * position_density);
+            let weight =
+                r * r * circle.sin_theta * per_sr / (t * t * point_density * position_density);
             let mut in_scattered = Lanes::splat(0.0);
             for (d, radiance) in directions {
                 let phases = integrator.scattering_phases(&c, lanes, cam_dir.dot(*d));
@@ -668,6 +667,16 @@ mod tests {
         // point(r, θ, ψ) is point(r, θ, 0) turned by ψ.
         let p = axis.point(axis.r0_m + 3e3, 1.5, 0.0);
         assert!((axis.rotate(p, 0.2) - axis.point(axis.r0_m + 3e3, 1.5, 0.2)).length() < 1e-6);
+        // A circle's positions, one sine and cosine each, are the point and
+        // the turn back to the bit (sin(−ψ) = −sin ψ): the splats, and so
+        // the pinned images, do not depend on which form places them.
+        let circle = axis.circle(axis.r0_m + 3e3, 1.5);
+        for psi in [-2.9, -0.7, -1e-3, 0.0, 2e-4, 0.2, 1.1, 3.1] {
+            let to = axis.point(axis.r0_m + 3e3, 1.5, psi) - axis.observer_m;
+            let (placed, back) = circle.place(psi);
+            assert_eq!(placed, to, "ψ {psi}");
+            assert_eq!(back, axis.rotate(to.normalize(), -psi), "ψ {psi}");
+        }
     }
 
     #[test]

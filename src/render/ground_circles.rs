@@ -114,6 +114,8 @@ struct Landing {
 /// The circle at one angle: its visible arc and the positions' densities.
 struct GroundArc {
     theta: f64,
+    /// sin θ and cos θ.
+    sines: (f64, f64),
     half: f64,
     near: Arc,
     narrow: Arc,
@@ -321,6 +323,7 @@ impl GroundSplatter {
         let foot = u.abs() / u.hypot(self.height_m);
         Some(GroundArc {
             theta,
+            sines: (theta.sin(), theta.cos()),
             half,
             near: Arc::new(half, scale),
             narrow: Arc::new(half, scale * foot.max(1e-6)),
@@ -333,7 +336,7 @@ impl GroundSplatter {
     fn land(&self, arc: &GroundArc, psi: f64, camera: &Camera) -> Option<Landing> {
         let axis = &self.axis;
         let ground_m = axis.ground_m;
-        let x = axis.point(ground_m, arc.theta, psi);
+        let x = axis.circle_at(ground_m, arc.sines).point(psi.sin_cos());
         let to = x - axis.observer_m;
         let t_m = to.length();
         let dir = to / t_m;
@@ -355,7 +358,7 @@ impl GroundSplatter {
             return None;
         }
         let weight =
-            per_sr * cos_x * ground_m * ground_m * arc.theta.sin() / (t_m * t_m * arc.density(psi));
+            per_sr * cos_x * ground_m * ground_m * arc.sines.0 / (t_m * t_m * arc.density(psi));
         Some(Landing {
             pixel: (py as u32) * width as u32 + px as u32,
             column_offset: px.fract() as f32,
