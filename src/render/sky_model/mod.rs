@@ -74,6 +74,7 @@ mod geometric;
 mod optics;
 mod orders;
 mod stored;
+mod sun;
 
 use optics::{node_wavelength, Gathered, Optics, Sources, Spectrum, MS_VIEW_ANGLES, NODES};
 pub use orders::{forget_shared_tables, keep_shared_tables_on_disk, ModelTables};
