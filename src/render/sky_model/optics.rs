@@ -68,7 +68,9 @@ pub(super) const GROUND_DIRECTIONS_HIGHER: usize = 64;
 /// first frame at Mars sunset read 4.9 % off the path tracer's and the
 /// Earth's sunset 2.7 % (twilight 2.0 %), at 13 (the second at 200 m)
 /// 4.3 % and 1.9 % (twilight 2.7 %), at 17 4.3 % and 1.6 % for a third
-/// more time than 13 (256×128, against 2 × 24–40 passes).
+/// more time than 13 (256×128, against 2 × 24–40 passes; twilight's
+/// figures with the sun taken as a point, 1.6 % at 13 rows over its disc,
+/// `super::sun`).
 pub(super) const MS_ALTITUDES: usize = 13;
 /// See [`MS_ALTITUDES`].
 pub(super) const MS_ZENITHS: usize = 33;
