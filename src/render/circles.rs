@@ -288,12 +288,13 @@ impl CircleSplatter {
                 let c = medium.coefficients(r, &lanes);
                 let light = guide.map_or(1.0, |g| g.skylight(medium, y0)) * c.scattering(0);
                 let arc = Arc::new(half, cauchy_scale(&axis, r, theta));
+                let circle = axis.circle(r, theta);
                 // ∫ dψ T / (t² cos el) by the Cauchy draws at stratum centres.
                 let mut integral = 0.0;
                 for k in 0..TABLE_NODES {
                     let psi = arc.cauchy((k as f64 + 0.5) / TABLE_NODES as f64);
                     let density = arc.cauchy_density(psi);
-                    let to = axis.point(r, theta, psi) - observer_m;
+                    let to = circle.point(psi.sin_cos()) - observer_m;
                     let t = to.length();
                     let dir = to / t;
                     if camera.pixels_per_sr(dir) <= 0.0 {
@@ -311,7 +312,7 @@ impl CircleSplatter {
                 }
                 // Density per r₀ dr dθ, times the bin's area ρ Δρ Δφ.
                 r * r
-                    * theta.sin()
+                    * circle.sin_theta
                     * light
                     * integral
                     * rho

@@ -655,6 +655,20 @@ pub(super) fn node_wavelength(k: usize) -> f64 {
     RANGE_NM.0 + (RANGE_NM.1 - RANGE_NM.0) * k as f64 / (NODES - 1) as f64
 }
 
+/// The model's wavelength nodes as [`GROUPS`] groups of [`LANES`] lanes,
+/// each with `medium`'s coefficients from `lane_table`.
+pub(super) fn node_groups(
+    medium: &Medium,
+    lane_table: &crate::render::lanes::LaneTable,
+) -> Vec<SpectralLanes> {
+    (0..GROUPS)
+        .map(|g| {
+            let w = crate::render::medium::Lanes::from_fn(|j| node_wavelength(g * LANES + j));
+            lane_table.lanes(w, LANES, medium)
+        })
+        .collect()
+}
+
 /// Directions to sum an integral over the sphere by, each with its
 /// cell's solid angle and the phase functions averaged over a cell of
 /// that size ([`Phases::averaged_over_cells`], made once by the caller:
@@ -786,13 +800,7 @@ mod tests {
         for name in ["midday", "mars-noon"] {
             let renderer = Renderer::new(&Scene::preset(name).unwrap()).unwrap();
             let medium = &renderer.medium;
-            let groups: Vec<SpectralLanes> = (0..GROUPS)
-                .map(|g| {
-                    let w =
-                        crate::render::medium::Lanes::from_fn(|j| node_wavelength(g * LANES + j));
-                    renderer.lane_table.lanes(w, LANES, medium)
-                })
-                .collect();
+            let groups = node_groups(medium, &renderer.lane_table);
             let phases = Phases::new(medium, &groups);
             for directions in [32, 128] {
                 let cells = phases.averaged_over_cells(directions);
@@ -832,12 +840,7 @@ mod tests {
     fn quadratures_sum_the_sphere_and_turn_with_the_sun() {
         let renderer = Renderer::new(&Scene::preset("mars-noon").unwrap()).unwrap();
         let medium = &renderer.medium;
-        let groups: Vec<SpectralLanes> = (0..GROUPS)
-            .map(|g| {
-                let w = crate::render::medium::Lanes::from_fn(|j| node_wavelength(g * LANES + j));
-                renderer.lane_table.lanes(w, LANES, medium)
-            })
-            .collect();
+        let groups = node_groups(medium, &renderer.lane_table);
         let phases = Phases::new(medium, &groups);
         let (near_cells, far_cells) = (
             phases.averaged_over_cells(MS_DIRECTIONS_NEAR_SUN),

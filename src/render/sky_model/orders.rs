@@ -12,7 +12,7 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::optics::{
-    add_product, add_scaled, altitude_of, node_wavelength, split, view_azimuth_of,
+    add_product, add_scaled, altitude_of, node_groups, node_wavelength, split, view_azimuth_of,
     view_cosine_index, view_cosine_of, view_zenith_cosine_of, zenith_cosine_of, MsTable, Optics,
     Phases, Quadrature, SkyIrradiance, Sources, Spectrum, GROUND_DIRECTIONS_HIGHER, GROUPS,
     MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_AT_CORE, MS_DIRECTIONS_AT_SUN,
@@ -548,11 +548,7 @@ impl ModelTables {
         stored: Option<(MsTable, SkyIrradiance)>,
         cancelled: Cancelled<'_>,
     ) -> Option<Self> {
-        let nodes: Vec<f64> = (0..NODES).map(node_wavelength).collect();
-        let groups: Vec<SpectralLanes> = nodes
-            .chunks(LANES)
-            .map(|w| lane_table.lanes(Lanes::from_fn(|j| w[j]), LANES, medium))
-            .collect();
+        let groups = node_groups(medium, lane_table);
         let phases = Phases::new(medium, &groups);
         let (ms, sky) = if let Some(read) = stored {
             read

@@ -27,7 +27,9 @@ impl Optics<'_> {
     pub(super) fn sun_transmittance(&self, x: DVec3) -> Spectrum {
         let up = x / x.length();
         let sin_elevation = up.dot(self.sun_direction);
-        if sin_elevation > DISC_BELOW_SIN_ELEVATION {
+        let across = up - self.sun_direction * sin_elevation;
+        let length = across.length();
+        if sin_elevation > DISC_BELOW_SIN_ELEVATION || length < 1e-9 {
             return self
                 .sun_transmittance_along(x, self.sun_direction)
                 .unwrap_or([0.0; NODES]);
@@ -35,13 +37,6 @@ impl Optics<'_> {
         // The disc's vertical diameter, its points s ∈ [−1, 1] weighted by
         // the chord √(1 − s²): Gauss–Chebyshev (second kind) with three
         // nodes, s = ±1/√2 and 0, weights ¼, ½, ¼.
-        let across = up - self.sun_direction * sin_elevation;
-        let length = across.length();
-        if length < 1e-9 {
-            return self
-                .sun_transmittance_along(x, self.sun_direction)
-                .unwrap_or([0.0; NODES]);
-        }
         let offset = across * (SUN_RADIUS_RAD * std::f64::consts::FRAC_1_SQRT_2 / length);
         // Below the upper node the planet hides the rest of the disc too.
         let Some(upper) =
@@ -76,8 +71,7 @@ impl Optics<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::render::medium::SpectralLanes;
-    use crate::render::sky_model::optics::{node_wavelength, Phases, GROUPS};
+    use crate::render::sky_model::optics::{node_groups, Phases};
     use crate::render::Renderer;
     use crate::Scene;
 
@@ -89,12 +83,7 @@ mod tests {
     fn sunlight_near_the_horizon_is_the_discs() {
         let renderer = Renderer::new(&Scene::preset("midday").unwrap()).unwrap();
         let medium = &renderer.medium;
-        let groups: Vec<SpectralLanes> = (0..GROUPS)
-            .map(|g| {
-                let w = crate::render::medium::Lanes::from_fn(|j| node_wavelength(g * LANES + j));
-                renderer.lane_table.lanes(w, LANES, medium)
-            })
-            .collect();
+        let groups = node_groups(medium, &renderer.lane_table);
         let phases = Phases::new(medium, &groups);
         let optics = |elevation_deg: f64| Optics {
             medium,
