@@ -158,7 +158,7 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
     // numbers change) 0.97 % and 0.61 %; with finer tables 0.93 % and
     // 0.60 %. The ratio falls as the model improves and the coarse
     // passes' noise is left: it was 0.65 at first.
-    use skyrender::render::preview::{Preview, PREVIEW_COARSE_PASSES};
+    use skyrender::render::preview::{Preview, FIRST_COMPOSED_PASS, PREVIEW_COARSE_PASSES};
     let mut scene = Scene::preset("midday").unwrap();
     scene.render.width = 128;
     scene.render.height = 64;
@@ -195,6 +195,8 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
             break;
         }
         assert_eq!(shown.model_weight, 1.0);
+        // No correction before its halves can be told from their noise.
+        assert!(shown.coarse_passes >= FIRST_COMPOSED_PASS);
         corrected = Some((shown.coarse_passes, shown.image));
     }
     let (passes, corrected) = corrected.expect("coarse passes before the full ones");

@@ -45,6 +45,8 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::camera::Camera;
+use super::denoise::HalfResiduals;
+use super::film_layers::VarianceHalves;
 use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
 use crate::physics::sun;
@@ -113,8 +115,8 @@ pub fn compose(scene: &Scene, coarse: &Renderer, film: &Film) -> Result<RgbImage
 /// `film` of the coarse renderer `coarse`, whose own model image is
 /// `coarse_model`; `places`, where given, is [`places`] of `camera` in
 /// the coarse one (kept by a caller that composes again and again). Where
-/// the coarse film keeps the `variance` layer (the preview's), the
-/// correction is denoised ([`Coarse::variance`]).
+/// the coarse film keeps the `variance` layer's halves (the preview's), the
+/// correction is denoised ([`Coarse::halves`]).
 pub fn correct(
     scene: &Scene,
     camera: &Camera,
@@ -129,13 +131,13 @@ pub fn correct(
         .try_layer_images()
         .map_err(|_| coarse.out_of_memory())?
         .map(|[_, sun, _]| sun);
-    let variance = film.variance_plane();
+    let halves = film.variance_halves();
     let correction = Coarse {
         camera: coarse.camera(),
         passes: &passes.pixels,
         model: &coarse_model.pixels,
         disc: disc.as_deref(),
-        variance: variance.as_deref(),
+        halves: halves.as_ref(),
         wraps: scene.camera.kind == CameraKind::Equirect,
         meets_ground: &|dir| coarse.meets_ground(dir),
     };
@@ -201,11 +203,11 @@ pub struct Coarse<'a> {
     pub model: &'a [[f32; 3]],
     /// The sun's disc in `passes` (its `sun` layer), if the render kept it.
     pub disc: Option<&'a [[f32; 3]]>,
-    /// The variance of each coarse pixel's mean luminance (the passes'
-    /// `variance` layer), where the correction is to be denoised (the
-    /// preview's, `render::denoise`); `None`: taken as it is (the fast mode's
-    /// export, whose bias is measured without it).
-    pub variance: Option<&'a [f32]>,
+    /// The passes' luminance from each half of them apart (the `variance`
+    /// layer's halves, [`Film::variance_halves`]), where the correction is
+    /// to be denoised (the preview's, `render::denoise`); `None`: taken as
+    /// it is (the fast mode's export, whose bias is measured without it).
+    pub halves: Option<&'a VarianceHalves>,
     /// Whether the image wraps around in x (the equirect map).
     pub wraps: bool,
     /// Whether the view ray along a direction meets the ground
@@ -321,9 +323,21 @@ impl Coarse<'_> {
                     .filter(|_| self.disc.is_none_or(|d| d[k][1] <= 0.0))
             })
             .collect();
-        let residual = match self.variance {
-            Some(variance) => {
-                super::denoise::denoised(&residual, variance, &shares, (cw, ch), self.wraps)
+        let residual = match self.halves {
+            Some(halves) => {
+                // Each half's correction in luminance, as the residual's.
+                let y = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
+                let halves = HalfResiduals {
+                    y: halves.mean_y.each_ref().map(|mean_y| {
+                        (0..cw * ch)
+                            .map(|k| {
+                                let disc = self.disc.map_or(0.0, |d| y(d[k]));
+                                f64::from(mean_y[k]) - disc - y(self.model[k])
+                            })
+                            .collect()
+                    }),
+                };
+                super::denoise::denoised(&residual, &halves, &shares, (cw, ch), self.wraps)
             }
             None => residual,
         };
@@ -570,7 +584,7 @@ mod tests {
             passes,
             model: &zeros,
             disc: None,
-            variance: None,
+            halves: None,
             wraps: true,
             meets_ground,
         };
@@ -667,15 +681,24 @@ mod tests {
                 [bright(k / 16) * (0.97 + 0.03 * wobble); 3]
             })
             .collect();
-        let variance: Vec<f32> = (0..16 * 8)
-            .map(|k| (0.03 * bright(k / 16)).powi(2))
-            .collect();
+        // Two halves whose noise is each other's opposite about the
+        // passes' mean.
+        let halves = VarianceHalves {
+            mean_y: [1.0_f32, -1.0].map(|sign| {
+                (0..16 * 8)
+                    .map(|k| {
+                        let mean = passes[k][1];
+                        mean + sign * 0.02 * bright(k / 16) * if k % 2 == 0 { 1.0 } else { -1.0 }
+                    })
+                    .collect()
+            }),
+        };
         let c = Coarse {
             camera: &coarse,
             passes: &passes,
             model: &model,
             disc: None,
-            variance: Some(&variance),
+            halves: Some(&halves),
             wraps: true,
             meets_ground: &|_| false,
         };
@@ -756,7 +779,7 @@ mod tests {
             passes: &disc,
             model: &zeros,
             disc: Some(&disc),
-            variance: None,
+            halves: None,
             wraps: true,
             meets_ground: &below,
         };

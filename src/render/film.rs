@@ -517,8 +517,24 @@ impl Film {
             sum_we: try_filled(n, 0.0)?,
             sum_wee: try_filled(n, 0.0)?,
             batches: 0,
+            odd: None,
         });
         Ok(self)
+    }
+
+    /// Keeps the `variance` layer's two halves too; nothing without it.
+    pub(crate) fn try_keep_variance_halves(
+        &mut self,
+    ) -> Result<(), std::collections::TryReserveError> {
+        self.variance
+            .as_mut()
+            .map_or(Ok(()), VarianceSums::try_keep_halves)
+    }
+
+    /// The luminance of the odd- and the even-numbered full passes apart,
+    /// once each has one, where the film keeps them.
+    pub fn variance_halves(&self) -> Option<super::film_layers::VarianceHalves> {
+        self.variance.as_ref()?.halves()
     }
 
     /// Empties the pass sums before pass `pass`.
@@ -553,9 +569,7 @@ impl Film {
                 let splats: f64 = pair().map(|p| f64::from(v.pass_splat_y[p])).sum();
                 e += splats / (n * splat_paths as f64);
             }
-            v.sum_w[i] += weight;
-            v.sum_we[i] += weight * e;
-            v.sum_wee[i] += weight * e * e;
+            v.add_batch(i, weight, e);
         }
         v.batches += 1;
     }

@@ -25,6 +25,7 @@
 //! minus the other two, exactly, so it needs no memory of its own. The
 //! sun's, non-zero on a few pixels only, are kept per row as a short list.
 
+use super::alloc::try_filled;
 use super::exact::{column_entry, ExactPlane, ExactRow, ExactSum};
 
 /// The layers the film estimates from its paths, as named in
@@ -127,6 +128,21 @@ pub(crate) struct VarianceSums {
     pub(super) sum_wee: Vec<f64>,
     /// Passes counted.
     pub(super) batches: u32,
+    /// Σ Wₚ and Σ Wₚ eₚ over the odd-numbered batches alone, where the film
+    /// keeps its two halves ([`VarianceHalves`]).
+    pub(super) odd: Option<[Vec<f64>; 2]>,
+}
+
+/// A pixel's luminance from the odd-numbered and the even-numbered
+/// batches apart (`Film::variance_halves`): two estimates whose
+/// noises are independent of each other (nearly: successive passes' Sobol
+/// points are stratified against each other), by which the preview's
+/// denoising tells its correction from noise (`render::denoise`).
+#[derive(Clone, Debug)]
+pub struct VarianceHalves {
+    /// Per pixel, each half's mean luminance, cd m⁻² (NaN where the half
+    /// has no weight there).
+    pub mean_y: [Vec<f32>; 2],
 }
 
 /// One row's share of a pass's luminance sums, for the thread that
@@ -153,6 +169,44 @@ impl VarianceSums {
             .zip(self.pass_w.chunks_mut(width))
             .map(|(y, w)| VarianceRow { y, w })
             .collect()
+    }
+
+    /// Counts pixel `i`'s estimate `e` of weight `weight` in the batch
+    /// being ended (number [`Self::batches`], counted from 0).
+    pub(super) fn add_batch(&mut self, i: usize, weight: f64, e: f64) {
+        self.sum_w[i] += weight;
+        self.sum_we[i] += weight * e;
+        self.sum_wee[i] += weight * e * e;
+        if let Some([w, we]) = self.odd.as_mut().filter(|_| self.batches % 2 == 1) {
+            w[i] += weight;
+            we[i] += weight * e;
+        }
+    }
+
+    /// Keeps the two halves' sums too ([`VarianceHalves`]).
+    pub(super) fn try_keep_halves(&mut self) -> Result<(), std::collections::TryReserveError> {
+        let n = self.sum_w.len();
+        self.odd = Some([try_filled(n, 0.0)?, try_filled(n, 0.0)?]);
+        Ok(())
+    }
+
+    /// The two halves' means, once each has a batch; `None` where the film
+    /// does not keep them.
+    pub(super) fn halves(&self) -> Option<VarianceHalves> {
+        let [odd_w, odd_we] = self.odd.as_ref().filter(|_| self.batches >= 2)?;
+        let mean = |we: f64, w: f64| if w > 0.0 { (we / w) as f32 } else { f32::NAN };
+        Some(VarianceHalves {
+            mean_y: [
+                odd_we
+                    .iter()
+                    .zip(odd_w)
+                    .map(|(&we, &w)| mean(we, w))
+                    .collect(),
+                (0..self.sum_w.len())
+                    .map(|i| mean(self.sum_we[i] - odd_we[i], self.sum_w[i] - odd_w[i]))
+                    .collect(),
+            ],
+        })
     }
 
     /// Adds a splat of luminance `y` at `pixel` to this pass's.

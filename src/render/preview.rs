@@ -3,7 +3,8 @@
 //! milliseconds), then the model corrected by a coarse Monte Carlo render
 //! (the fast mode's image, [`super::fast`], at a quarter of the width and
 //! height: each coarse pass costs a sixteenth of a full one; its
-//! correction denoised by the passes' spread, `fast::denoised`), then the
+//! correction denoised by what the passes' two halves bear out,
+//! `render::denoise`; shown once two full coarse passes are in), then the
 //! full-size passes, blended with the corrected model until their noise
 //! falls below its error ([`model_weight_with`]). The finished image is
 //! the passes alone: only the preview ever shows the model.
@@ -76,6 +77,12 @@ pub const PREVIEW_SCALE: u32 = 4;
 /// at [`PREVIEW_SCALE`] (16 coarse passes cost about one full one), by
 /// when the corrected model's noise is below its bias.
 pub const PREVIEW_COARSE_PASSES: u32 = 64;
+/// Coarse passes before the first corrected model: the draft and two full
+/// passes, the fewest whose halves (`Film::variance_halves`) tell the
+/// correction from its noise (`render::denoise`). Shown as it was, the
+/// draft's correction took twilight's preview 700–900 % off for a quarter
+/// of a second, one full pass's 15–30 %.
+pub const FIRST_COMPOSED_PASS: u32 = 5;
 /// The corrected model's typical RMS error over a whole image, relative to
 /// its mean luminance, after [`PREVIEW_COARSE_PASSES`]: bias and the
 /// coarse passes' noise, 1–4 % over the bench's scenes (`BENCHMARKS.md`).
@@ -219,18 +226,23 @@ impl<'a> Preview<'a> {
             // The coarse scene is the valid scene at a smaller size: should
             // it still be refused, the preview goes on without it.
             let mut coarse_scene = fast::coarse_scene(&scene);
-            // The passes' spread per pixel, by which the correction is
-            // denoised (fast::denoised).
+            // The passes' halves, by which the correction is denoised
+            // (render::denoise).
             coarse_scene.output.layers.push("variance".into());
             let Ok(renderer) = Renderer::new(&coarse_scene) else {
                 self.coarse_done = true;
                 return None;
             };
             let c = &renderer.scene.render;
+            let mut film = renderer.new_film();
+            if film.try_keep_variance_halves().is_err() {
+                self.coarse_done = true;
+                return None;
+            }
             self.coarse = Some(CoarsePhase {
                 model: self.sky.image(renderer.camera(), c.width, c.height),
                 places: fast::places(self.renderer.camera(), &renderer),
-                film: renderer.new_film(),
+                film,
                 renderer,
                 passes: 0,
                 compose_time: Duration::ZERO,
@@ -250,7 +262,11 @@ impl<'a> Preview<'a> {
                 return None;
             }
             phase.passes += 1;
-            if started.elapsed() >= phase.compose_time || phase.passes >= PREVIEW_COARSE_PASSES {
+            let composable = phase.passes >= FIRST_COMPOSED_PASS;
+            if composable
+                && (started.elapsed() >= phase.compose_time
+                    || phase.passes >= PREVIEW_COARSE_PASSES)
+            {
                 break;
             }
         }
