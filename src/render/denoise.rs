@@ -52,10 +52,15 @@ const SIGNIFICANCE: f64 = 1.5;
 /// β = G⁻¹ a, G the Gram matrix of b and r (noise and all), a the halves'
 /// cross products above; it lowers the error from that of no correction
 /// by aᵀG⁻¹a. Each cross product in a is itself noisy, the more so the
-/// fewer the passes; its standard error s comes from its antisymmetric
-/// twin, ½(⟨b_A, r_B⟩ − ⟨b_B, r_A⟩) and ½(‖r_A‖² − ‖r_B‖²), which has
-/// expectation zero and, to leading order, the same noise: summed over
-/// [`BLOCKS`] strips of columns, their squares estimate s². A cross
+/// fewer the passes; its standard error s comes from a twin with the
+/// halves' difference in place of the truth's estimates,
+/// ½(⟨b, r_A − r_B⟩ + ⟨b_A − b_B, r⟩) and ⟨r, r_A − r_B⟩ (b and r the
+/// whole's), which has expectation zero (for halves of equal weight)
+/// and, to leading order, the same noise: summed over [`BLOCKS`] strips
+/// of columns, their squares estimate s². (A bright sample in half A
+/// where the correction is c adds about E c to both ⟨b_A, r_B⟩ and
+/// ⟨b_B, r_A⟩; the twin ½(⟨b_A, r_B⟩ − ⟨b_B, r_A⟩) cancelled it, and
+/// twilight's fifth coarse pass was shown 5 % off.) A cross
 /// product of a is then scaled by 1 − (Z s / a)², Z = [`SIGNIFICANCE`]
 /// (nothing below Z s), so that the largest of several noisy gains is not
 /// taken for a real one. Of the radii and of b alone, r alone or both
@@ -112,10 +117,10 @@ pub(super) fn denoised(
             let [b_a, b_b] = [mean(&halves.y[0]), mean(&halves.y[1])];
             let b = mean(&luminance);
             let (mut gram, mut along) = ([[0.0; 2]; 2], [0.0; 2]);
-            // Per strip of columns, the cross products' antisymmetric
-            // twins (next to `along`'s terms): zero in expectation, with
-            // the same noise, so their squares sum to the variance of
-            // `along` (for strips whose noises are independent).
+            // Per strip of columns, the cross products' twins (next to
+            // `along`'s terms): zero in expectation, with the same noise,
+            // so their squares sum to the variance of `along` (for strips
+            // whose noises are independent).
             let mut twins = [[0.0; 2]; BLOCKS];
             for (j, &k) in members.iter().enumerate() {
                 let (r, [r_a, r_b]) = (luminance[k], [halves.y[0][k], halves.y[1][k]]);
@@ -125,7 +130,7 @@ pub(super) fn denoised(
                 along[0] += 0.5 * (b_a[j] * r_b + b_b[j] * r_a);
                 along[1] += r_a * r_b;
                 let twin = &mut twins[(k % size.0) * BLOCKS / size.0];
-                twin[0] += 0.5 * (b_a[j] * r_b - b_b[j] * r_a);
+                twin[0] += 0.5 * (b[j] * (r_a - r_b) + (b_a[j] - b_b[j]) * r);
                 twin[1] += 0.5 * (r_a * r_a - r_b * r_b);
             }
             gram[1][0] = gram[0][1];

@@ -504,21 +504,7 @@ impl Film {
 impl Film {
     /// The film with the sums of the `variance` layer.
     pub(crate) fn try_with_variance(mut self) -> Result<Self, std::collections::TryReserveError> {
-        let n = self.xyz_sum.len();
-        self.variance = Some(VarianceSums {
-            pass_y: try_filled(n, 0.0)?,
-            pass_w: try_filled(n, 0.0)?,
-            pass_splat_y: if self.splats() {
-                try_filled(n, 0.0)?
-            } else {
-                Vec::new()
-            },
-            sum_w: try_filled(n, 0.0)?,
-            sum_we: try_filled(n, 0.0)?,
-            sum_wee: try_filled(n, 0.0)?,
-            batches: 0,
-            odd: None,
-        });
+        self.variance = Some(VarianceSums::try_new(self.xyz_sum.len(), self.splats())?);
         Ok(self)
     }
 
@@ -540,57 +526,24 @@ impl Film {
     /// Empties the pass sums before pass `pass`.
     pub(crate) fn start_variance_pass(&mut self) {
         if let Some(v) = &mut self.variance {
-            v.pass_y.fill(0.0);
-            v.pass_w.fill(0.0);
-            v.pass_splat_y.fill(0.0);
+            v.start_pass();
         }
     }
 
     /// Counts the pass just rendered by every row (`pass`, with
     /// `splat_paths` splat paths) as one batch; the draft pass is not one.
     pub(crate) fn end_variance_pass(&mut self, pass: u32, splat_paths: u64) {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let mirror = self.mirror;
-        let Some(v) = self.variance.as_mut().filter(|_| pass >= 1) else {
-            return;
-        };
-        for i in 0..w * h {
-            let partner = mirror
-                .map(|m| m.partner(i % w, i / w, w, h))
-                .filter(|&p| p != i);
-            let pair = || std::iter::once(i).chain(partner);
-            let weight: f64 = pair().map(|p| v.pass_w[p]).sum();
-            if weight <= 0.0 {
-                continue;
-            }
-            let mut e = pair().map(|p| v.pass_y[p]).sum::<f64>() / weight;
-            if splat_paths > 0 && !v.pass_splat_y.is_empty() {
-                let n = pair().count() as f64;
-                let splats: f64 = pair().map(|p| f64::from(v.pass_splat_y[p])).sum();
-                e += splats / (n * splat_paths as f64);
-            }
-            v.add_batch(i, weight, e);
+        let size = (self.width as usize, self.height as usize);
+        if let Some(v) = self.variance.as_mut().filter(|_| pass >= 1) {
+            v.end_pass(size, self.mirror, splat_paths);
         }
-        v.batches += 1;
     }
 
     /// The `variance.Y` plane: per pixel the estimated variance of its mean
     /// luminance, (cd m⁻²)²; `None` without variance sums or before two
     /// full passes.
     pub fn variance_plane(&self) -> Option<Vec<f32>> {
-        let v = self.variance.as_ref().filter(|v| v.batches >= 2)?;
-        let p = f64::from(v.batches);
-        Some(
-            (0..self.xyz_sum.len())
-                .map(|i| {
-                    let (w, we, wee) = (v.sum_w[i], v.sum_we[i], v.sum_wee[i]);
-                    if w <= 0.0 {
-                        return 0.0;
-                    }
-                    ((wee - we * we / w).max(0.0) / ((p - 1.0) * w)) as f32
-                })
-                .collect(),
-        )
+        self.variance.as_ref()?.plane()
     }
 }
 

@@ -26,6 +26,7 @@
 //! sun's, non-zero on a few pixels only, are kept per row as a short list.
 
 use super::alloc::try_filled;
+use super::camera::Mirror;
 use super::exact::{column_entry, ExactPlane, ExactRow, ExactSum};
 
 /// The layers the film estimates from its paths, as named in
@@ -162,6 +163,82 @@ impl VarianceRow<'_> {
 }
 
 impl VarianceSums {
+    /// Zero sums for `pixels` pixels (and their splats' pass sums, where
+    /// the film `splats`).
+    pub(super) fn try_new(
+        pixels: usize,
+        splats: bool,
+    ) -> Result<Self, std::collections::TryReserveError> {
+        Ok(Self {
+            pass_y: try_filled(pixels, 0.0)?,
+            pass_w: try_filled(pixels, 0.0)?,
+            pass_splat_y: if splats {
+                try_filled(pixels, 0.0)?
+            } else {
+                Vec::new()
+            },
+            sum_w: try_filled(pixels, 0.0)?,
+            sum_we: try_filled(pixels, 0.0)?,
+            sum_wee: try_filled(pixels, 0.0)?,
+            batches: 0,
+            odd: None,
+        })
+    }
+
+    /// Empties the pass sums before a pass.
+    pub(super) fn start_pass(&mut self) {
+        self.pass_y.fill(0.0);
+        self.pass_w.fill(0.0);
+        self.pass_splat_y.fill(0.0);
+    }
+
+    /// Counts the pass just rendered into a film of `size` (width, height;
+    /// its pixels read with their `mirror` partners), with `splat_paths`
+    /// splat paths, as one batch.
+    pub(super) fn end_pass(
+        &mut self,
+        size: (usize, usize),
+        mirror: Option<Mirror>,
+        splat_paths: u64,
+    ) {
+        let (w, h) = size;
+        for i in 0..w * h {
+            let partner = mirror
+                .map(|m| m.partner(i % w, i / w, w, h))
+                .filter(|&p| p != i);
+            let pair = || std::iter::once(i).chain(partner);
+            let weight: f64 = pair().map(|p| self.pass_w[p]).sum();
+            if weight <= 0.0 {
+                continue;
+            }
+            let mut e = pair().map(|p| self.pass_y[p]).sum::<f64>() / weight;
+            if splat_paths > 0 && !self.pass_splat_y.is_empty() {
+                let n = pair().count() as f64;
+                let splats: f64 = pair().map(|p| f64::from(self.pass_splat_y[p])).sum();
+                e += splats / (n * splat_paths as f64);
+            }
+            self.add_batch(i, weight, e);
+        }
+        self.batches += 1;
+    }
+
+    /// Per pixel the estimated variance of its mean luminance; `None`
+    /// before two batches.
+    pub(super) fn plane(&self) -> Option<Vec<f32>> {
+        let p = f64::from(self.batches);
+        (self.batches >= 2).then(|| {
+            (0..self.sum_w.len())
+                .map(|i| {
+                    let (w, we, wee) = (self.sum_w[i], self.sum_we[i], self.sum_wee[i]);
+                    if w <= 0.0 {
+                        return 0.0;
+                    }
+                    ((wee - we * we / w).max(0.0) / ((p - 1.0) * w)) as f32
+                })
+                .collect()
+        })
+    }
+
     /// Per row, the row's pass sums.
     pub(crate) fn rows(&mut self, width: usize) -> Vec<VarianceRow<'_>> {
         self.pass_y
@@ -173,7 +250,7 @@ impl VarianceSums {
 
     /// Counts pixel `i`'s estimate `e` of weight `weight` in the batch
     /// being ended (number [`Self::batches`], counted from 0).
-    pub(super) fn add_batch(&mut self, i: usize, weight: f64, e: f64) {
+    fn add_batch(&mut self, i: usize, weight: f64, e: f64) {
         self.sum_w[i] += weight;
         self.sum_we[i] += weight * e;
         self.sum_wee[i] += weight * e * e;
