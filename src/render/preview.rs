@@ -4,15 +4,16 @@
 //! (the fast mode's image, [`super::fast`], at a quarter of the width and
 //! height: each coarse pass costs a sixteenth of a full one; its
 //! correction denoised by what the passes' two halves bear out,
-//! `render::denoise`; shown once two full coarse passes are in), then the
+//! `render::denoise`; shown once four full coarse passes are in), then the
 //! full-size passes, blended with the corrected model until their noise
 //! falls below its error ([`model_weight_with`]). The finished image is
 //! the passes alone: only the preview ever shows the model.
 //!
 //! A full pass at sunset takes seconds on two cores; the model alone is
-//! 1–10 % off; corrected, two seconds after a change, about 0.4 % by day,
-//! 0.8 % from orbit and on Mars at noon and 1.4–2.3 % at sunset and
-//! twilight (`BENCHMARKS.md`).
+//! 1–5 % off; corrected, two seconds after a change, about 0.3 % at
+//! midday, 0.9–1.3 % from orbit and on Mars at noon, 0.8–1.6 % at sunset
+//! and twilight, and 4–5 % on Mars at sunset, where the model's own error
+//! is left (`BENCHMARKS.md`).
 
 use std::time::{Duration, Instant};
 
