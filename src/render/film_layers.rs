@@ -293,3 +293,39 @@ impl VarianceSums {
         }
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The odd-numbered batches make one half and the rest the other, each
+    /// its weighted mean; none before each half has a batch, or where the
+    /// film keeps no halves.
+    #[test]
+    fn the_halves_split_the_batches_by_their_parity() {
+        let batches = |keep: bool, count: usize| {
+            let mut v = VarianceSums::try_new(1, false).unwrap();
+            if keep {
+                v.try_keep_halves().unwrap();
+            }
+            for (b, e) in [1.0, 2.0, 4.0, 8.0, 16.0]
+                .into_iter()
+                .take(count)
+                .enumerate()
+            {
+                v.add_batch(0, 1.0 + b as f64, e);
+                v.batches += 1;
+            }
+            v
+        };
+        let halves = batches(true, 5).halves().unwrap();
+        // Odd: batches 1 and 3 (weights 2 and 4); even: 0, 2 and 4.
+        let odd = (2.0 * 2.0 + 4.0 * 8.0) / 6.0;
+        let even = (1.0 + 3.0 * 4.0 + 5.0 * 16.0) / 9.0;
+        assert!((f64::from(halves.mean_y[0][0]) - odd).abs() < 1e-5);
+        assert!((f64::from(halves.mean_y[1][0]) - even).abs() < 1e-5);
+        assert!(batches(true, 1).halves().is_none());
+        assert!(batches(true, 2).halves().is_some());
+        assert!(batches(false, 5).halves().is_none());
+    }
+}
