@@ -24,7 +24,9 @@ const SIGNIFICANCE: f64 = 1.5;
 /// The correction `residual` of a `size` coarse image (its pixels' ground
 /// `shares`, `None` for a pixel left out and taken as it is; `wraps` in x
 /// for the equirect map) with its noise taken down, from `halves`, the
-/// same correction from each half of the passes alone.
+/// same correction's luminance from each half of the passes alone
+/// (`Film::variance_halves`; per coarse pixel, cd m⁻², not finite where
+/// the half has no value).
 ///
 /// The preview's correction after a second's coarse passes is several per
 /// cent noisy at low sun, while the model it corrects may be off by less
@@ -70,7 +72,7 @@ const SIGNIFICANCE: f64 = 1.5;
 /// approximate frame, never a render or an export.
 pub(super) fn denoised(
     residual: &[[f32; 3]],
-    halves: &HalfResiduals,
+    halves: &[Vec<f64>; 2],
     shares: &[Option<f64>],
     size: (usize, usize),
     wraps: bool,
@@ -84,7 +86,7 @@ pub(super) fn denoised(
     // (`render::fast`), and the limb's fine pixels went black.
     let parts: Vec<Option<bool>> = (0..size.0 * size.1)
         .map(|k| {
-            let [a, b] = [halves.y[0][k], halves.y[1][k]];
+            let [a, b] = [halves[0][k], halves[1][k]];
             shares[k]
                 .filter(|_| {
                     residual[k].iter().all(|v| v.is_finite())
@@ -114,7 +116,7 @@ pub(super) fn denoised(
                     .map(|&k| grid.mean(values, k, radius))
                     .collect()
             };
-            let [b_a, b_b] = [mean(&halves.y[0]), mean(&halves.y[1])];
+            let [b_a, b_b] = [mean(&halves[0]), mean(&halves[1])];
             let b = mean(&luminance);
             let (mut gram, mut along) = ([[0.0; 2]; 2], [0.0; 2]);
             // Per strip of columns, the cross products' twins (next to
@@ -123,7 +125,7 @@ pub(super) fn denoised(
             // whose noises are independent).
             let mut twins = [[0.0; 2]; BLOCKS];
             for (j, &k) in members.iter().enumerate() {
-                let (r, [r_a, r_b]) = (luminance[k], [halves.y[0][k], halves.y[1][k]]);
+                let (r, [r_a, r_b]) = (luminance[k], [halves[0][k], halves[1][k]]);
                 gram[0][0] += b[j] * b[j];
                 gram[0][1] += b[j] * r;
                 gram[1][1] += r * r;
@@ -207,14 +209,6 @@ impl Fit {
         }
         best
     }
-}
-
-/// The correction's luminance from each half of the passes alone
-/// (`Film::variance_halves`), for [`denoised`].
-pub(super) struct HalfResiduals {
-    /// Per half and coarse pixel, the correction's luminance, cd m⁻²; not
-    /// finite where the half has no value.
-    pub(super) y: [Vec<f64>; 2],
 }
 
 /// Which part each coarse pixel belongs to, for means within a part.
@@ -304,7 +298,7 @@ mod tests {
             let whole: Vec<[f32; 3]> = (0..cw * ch)
                 .map(|k| [(0.5 * (y[0][k] + y[1][k])) as f32; 3])
                 .collect();
-            let out = denoised(&whole, &HalfResiduals { y }, &shares, (cw, ch), true);
+            let out = denoised(&whole, &y, &shares, (cw, ch), true);
             let rms = |image: &[[f32; 3]]| {
                 let sum: f64 = (0..cw * ch)
                     .map(|k| (f64::from(image[k][1]) - truth(k)).powi(2))
@@ -350,7 +344,7 @@ mod tests {
         let whole: Vec<[f32; 3]> = (0..cw * ch)
             .map(|k| [(0.5 * (y[0][k] + y[1][k])) as f32; 3])
             .collect();
-        let out = denoised(&whole, &HalfResiduals { y }, &shares, (cw, ch), true);
+        let out = denoised(&whole, &y, &shares, (cw, ch), true);
         let rms = |image: &[[f32; 3]]| {
             (image.iter().map(|p| f64::from(p[1]).powi(2)).sum::<f64>() / (cw * ch) as f64).sqrt()
         };
@@ -361,7 +355,7 @@ mod tests {
         let residual = vec![[1.0_f32; 3]; cw * ch];
         let mut y = [vec![1.0; cw * ch], vec![1.0; cw * ch]];
         y[1][100] = f64::NAN;
-        let out = denoised(&residual, &HalfResiduals { y }, &shares, (cw, ch), true);
+        let out = denoised(&residual, &y, &shares, (cw, ch), true);
         assert!(out.iter().flatten().all(|v| v.is_finite()));
         assert_eq!(out[100], [1.0; 3]);
         assert!(out.iter().all(|p| (p[1] - 1.0).abs() < 1e-6));

@@ -45,7 +45,6 @@ use glam::DVec3;
 use rayon::prelude::*;
 
 use super::camera::Camera;
-use super::denoise::HalfResiduals;
 use super::film_layers::VarianceHalves;
 use super::{Film, OutOfMemory, Renderer};
 use crate::output::RgbImage;
@@ -323,20 +322,18 @@ impl Coarse<'_> {
                     .filter(|_| self.disc.is_none_or(|d| d[k][1] <= 0.0))
             })
             .collect();
+        let luminance = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
         let residual = match self.halves {
             Some(halves) => {
                 // Each half's correction in luminance, as the residual's.
-                let y = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
-                let halves = HalfResiduals {
-                    y: halves.mean_y.each_ref().map(|mean_y| {
-                        (0..cw * ch)
-                            .map(|k| {
-                                let disc = self.disc.map_or(0.0, |d| y(d[k]));
-                                f64::from(mean_y[k]) - disc - y(self.model[k])
-                            })
-                            .collect()
-                    }),
-                };
+                let halves = halves.mean_y.each_ref().map(|mean_y| {
+                    (0..cw * ch)
+                        .map(|k| {
+                            let disc = self.disc.map_or(0.0, |d| luminance(d[k]));
+                            f64::from(mean_y[k]) - disc - luminance(self.model[k])
+                        })
+                        .collect()
+                });
                 super::denoise::denoised(&residual, &halves, &shares, (cw, ch), self.wraps)
             }
             None => residual,
@@ -349,7 +346,6 @@ impl Coarse<'_> {
         // a share does not. Where the model is dark the scale stops at a
         // thousandth of its mean, and the correction is a difference as
         // before; with no model light at all it is one everywhere.
-        let luminance = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
         let mean = self
             .model
             .iter()
