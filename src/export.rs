@@ -10,7 +10,9 @@ use crate::output;
 use crate::physics::solar_position;
 use crate::render::exact::ExactSum;
 use crate::render::fast;
+use crate::render::noise_estimate::Stop;
 use crate::render::parts::{PartData, PassRange, Tile};
+use crate::render::service::Rendered;
 use crate::render::{service, MirrorAxis, OutOfMemory, Renderer};
 use crate::scene::{RenderMode, Scene, SceneError};
 
@@ -85,13 +87,61 @@ pub fn image_metadata(
     metadata
 }
 
-/// Render `scene` and write it to `path` (EXR or PNG), atomically.
+/// What a render to a file did.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Written {
+    /// Passes rendered (the least samples a pixel has; the fast mode's
+    /// coarse render's).
+    pub spp: u32,
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Samples discarded as not finite.
+    pub discarded: u64,
+    /// The image's estimated relative noise (0.01: 1 %), where it was
+    /// estimated (a noise target or the variance layer;
+    /// [`crate::render::noise_estimate`]; the fast mode's coarse render's).
+    pub noise: Option<f64>,
+    /// Why the render stopped.
+    pub stop: Stop,
+}
+
+impl Written {
+    fn of(rendered: &Rendered) -> Self {
+        Self {
+            spp: rendered.passes,
+            paths: rendered.paths,
+            discarded: rendered.film.discarded,
+            noise: rendered.noise,
+            stop: rendered.stop,
+        }
+    }
+
+    /// The header's entries of how the render stopped:
+    /// `skyrender:stopped_by` ([`Stop::describe`]) and, where it was
+    /// estimated, `skyrender:noise_estimate_percent`.
+    fn metadata(&self) -> Vec<(String, String)> {
+        let mut entries = vec![(
+            "skyrender:stopped_by".to_owned(),
+            self.stop.describe().to_owned(),
+        )];
+        if let Some(noise) = self.noise {
+            entries.push((
+                "skyrender:noise_estimate_percent".to_owned(),
+                format!("{:.3}", 100.0 * noise),
+            ));
+        }
+        entries
+    }
+}
+
+/// Render `scene` and write it to `path` (EXR or PNG), atomically;
+/// `progress` receives the passes done and the most there will be.
 pub fn render_to_file(
     scene: &Scene,
     path: &Path,
     cancel: &AtomicBool,
     mut progress: impl FnMut(u32, u32),
-) -> Result<(u32, u64, u64), ExportError> {
+) -> Result<Written, ExportError> {
     check_spectral_output(scene, path)?;
     if scene.render.mode == RenderMode::Fast {
         return render_fast_to_file(scene, path, cancel, progress);
@@ -132,42 +182,40 @@ pub fn render_to_file(
         .into());
     }
     let total = scene.render.spp;
-    let (film, paths) =
-        service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
-            .ok_or(ExportError::Cancelled)?;
+    let rendered = service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
+        .ok_or(ExportError::Cancelled)?;
+    let written = Written::of(&rendered);
+    if renderer.variance_layer() && rendered.passes < 3 {
+        return Err(SceneError::new(
+            "layers",
+            format!(
+                "variance is estimated from the spread of the passes after the first: it needs 3 or more, and the time limit left {}",
+                rendered.passes
+            ),
+        )
+        .into());
+    }
+    let film = rendered.film;
     let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
+    let mut metadata = image_metadata(scene, &image, written.spp, written.paths, written.discarded);
+    metadata.extend(written.metadata());
     let spectral = film
         .try_spectral_planes()
         .map_err(|_| renderer.out_of_memory())?;
     if let Some(planes) = spectral {
         let centres = crate::render::film_spectral::band_centres_nm(planes.len());
-        output::spectral::write_spectral_exr(
+        output::spectral::write_spectral_exr(path, &image, &centres, planes, &metadata)?;
+    } else if !layers.is_empty() {
+        write_layered_exr(scene, &renderer, &film, path, &image, metadata)?;
+    } else {
+        output::write_image(
             path,
             &image,
-            &centres,
-            planes,
-            &image_metadata(scene, &image, total, paths, film.discarded),
+            &metadata,
+            scene.render.exposure_ev.map(|v| v as f32),
         )?;
-        return Ok((total, paths, film.discarded));
     }
-    if !layers.is_empty() {
-        write_layered_exr(
-            scene,
-            &renderer,
-            &film,
-            path,
-            &image,
-            image_metadata(scene, &image, total, paths, film.discarded),
-        )?;
-        return Ok((total, paths, film.discarded));
-    }
-    output::write_image(
-        path,
-        &image,
-        &image_metadata(scene, &image, total, paths, film.discarded),
-        scene.render.exposure_ev.map(|v| v as f32),
-    )?;
-    Ok((total, paths, film.discarded))
+    Ok(written)
 }
 
 /// A fast-mode image ([`crate::render::fast`]) and the coarse render
@@ -176,19 +224,17 @@ pub fn render_to_file(
 pub struct FastImage {
     /// Linear Rec.709, Y in cd m⁻², at the scene's resolution.
     pub image: output::RgbImage,
-    /// The coarse render's passes.
-    pub spp: u32,
-    /// The coarse render's camera paths.
-    pub paths: u64,
-    /// The coarse render's samples discarded as not finite.
-    pub discarded: u64,
+    /// What the coarse render did: its passes, paths, discarded samples,
+    /// its estimated noise (which the composition's interpolation and
+    /// denoising only lower: an upper bound of the image's) and its stop.
+    pub coarse: Written,
     /// The coarse render's width and height.
     pub coarse_size: (u32, u32),
 }
 
 /// Renders `scene` in the fast mode ([`crate::render::fast`]): its
 /// coarse render by Monte Carlo, reporting its passes to `progress`
-/// (done, total), then the model corrected by it; `None` if `cancel` was
+/// (done, most), then the model corrected by it; `None` if `cancel` was
 /// set. The memory of both sizes is checked before any work.
 pub fn render_fast(
     scene: &Scene,
@@ -199,42 +245,42 @@ pub fn render_fast(
     let coarse = Renderer::new(&fast::coarse_scene(scene))?;
     fast::check_memory(scene)?;
     let total = scene.render.spp;
-    let Some((film, paths)) =
+    let Some(rendered) =
         service::render_blocking(&coarse, cancel, |pass, _| progress(pass, total))?
     else {
         return Ok(None);
     };
-    let image = fast::compose(scene, &coarse, &film)?;
+    let image = fast::compose(scene, &coarse, &rendered.film)?;
     Ok(Some(FastImage {
         image,
-        spp: total,
-        paths,
-        discarded: film.discarded,
+        coarse: Written::of(&rendered),
         coarse_size: (coarse.scene.render.width, coarse.scene.render.height),
     }))
 }
 
 /// [`render_to_file`] in the fast mode ([`crate::render::fast`]): the
 /// header says so (`skyrender:mode` `fast`, `skyrender:fast_scale`,
-/// `skyrender:coarse_size`), and its sample counts are the coarse
-/// render's.
+/// `skyrender:coarse_size`), and its sample counts and noise are the
+/// coarse render's.
 fn render_fast_to_file(
     scene: &Scene,
     path: &Path,
     cancel: &AtomicBool,
     progress: impl FnMut(u32, u32),
-) -> Result<(u32, u64, u64), ExportError> {
+) -> Result<Written, ExportError> {
     output::OutputFormat::from_path(path)?;
     let rendered = render_fast(scene, cancel, progress)?.ok_or(ExportError::Cancelled)?;
     let mut coarse = scene.clone();
     (coarse.render.width, coarse.render.height) = rendered.coarse_size;
+    let written = rendered.coarse;
     let mut metadata = image_metadata(
         &coarse,
         &rendered.image,
-        rendered.spp,
-        rendered.paths,
-        rendered.discarded,
+        written.spp,
+        written.paths,
+        written.discarded,
     );
+    metadata.extend(written.metadata());
     // The scene as asked for, not the coarse one.
     for (key, value) in &mut metadata {
         if key == "skyrender:scene" {
@@ -256,7 +302,7 @@ fn render_fast_to_file(
         &metadata,
         scene.render.exposure_ev.map(|v| v as f32),
     )?;
-    Ok((rendered.spp, rendered.paths, rendered.discarded))
+    Ok(written)
 }
 
 /// Checks that `scene`'s spectral image, if it asks for one, can be
@@ -369,6 +415,13 @@ pub fn render_part_to_file(
         return Err(SceneError::new(
             "output",
             "a part of a split render holds no spectral image (render it whole)",
+        )
+        .into());
+    }
+    if scene.render.noise_percent.is_some() || scene.render.time_limit_s.is_some() {
+        return Err(SceneError::new(
+            "render",
+            "a noise target or a time limit stops a whole render: a part renders the passes it is given (--passes)",
         )
         .into());
     }

@@ -79,6 +79,56 @@ fn render_writes_an_exr_with_scene_metadata() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
 
+/// `--noise` stops a render at its target, no sooner than the estimate's
+/// fewest passes; `--time-limit` before a pass that would end past it (the
+/// first pass always runs); each says so on its line and in the header.
+#[test]
+fn noise_target_and_time_limit_stop_a_render_and_say_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |flags: &[&str], name: &str| {
+        let path = dir.path().join(name);
+        let mut args = vec![
+            "render", "--preset", "midday", "--width", "32", "--height", "16", "--spp", "40",
+        ];
+        args.extend_from_slice(flags);
+        args.extend_from_slice(&["-o", path.to_str().unwrap()]);
+        let out = skyrender(&args);
+        assert!(out.status.success(), "{}", stderr(&out));
+        let image = exr::prelude::read_all_data_from_file(&path).unwrap();
+        let text = |key: &str| exr_text(&image, key).unwrap_or_default();
+        let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+        (
+            stdout,
+            text("skyrender:spp"),
+            text("skyrender:stopped_by"),
+            text("skyrender:noise_estimate_percent"),
+        )
+    };
+    // Any image meets 100 %: the fewest passes the estimate allows.
+    let (stdout, spp, stopped, noise) = run(&["--noise", "100"], "noise.exr");
+    let min_passes = skyrender::render::noise_estimate::MIN_PASSES.to_string();
+    assert_eq!(
+        (spp.as_str(), stopped.as_str()),
+        (min_passes.as_str(), "noise target")
+    );
+    assert!(
+        noise.parse::<f64>().is_ok_and(|n| n > 0.0 && n <= 100.0),
+        "{noise}"
+    );
+    assert!(
+        stdout.contains("stopped at the noise target") && stdout.contains("target 100 %"),
+        "{stdout}"
+    );
+    let (stdout, spp, stopped, noise) = run(&["--time-limit", "0.001"], "limit.exr");
+    assert_eq!(
+        (spp.as_str(), stopped.as_str(), noise.as_str()),
+        ("1", "time limit", "")
+    );
+    assert!(stdout.contains("stopped by the time limit"), "{stdout}");
+    let (_, spp, stopped, _) = run(&[], "plain.exr");
+    assert_eq!((spp.as_str(), stopped.as_str()), ("40", "passes"));
+}
+
 #[test]
 fn no_mirror_reads_every_pixel_alone_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
@@ -179,6 +229,16 @@ fn bad_inputs_get_one_line_errors_and_no_file() {
             "scene",
         ),
         (vec!["render", "--threads", "0", "-o", o], "threads"),
+        (vec!["render", "--noise", "0", "-o", o], "noise target"),
+        (vec!["render", "--noise", "nan", "-o", o], "noise target"),
+        (vec!["render", "--noise", "101", "-o", o], "noise target"),
+        (vec!["render", "--time-limit", "-1", "-o", o], "time limit"),
+        (vec!["render", "--time-limit", "inf", "-o", o], "time limit"),
+        // A part renders the passes it is given.
+        (
+            vec!["render", "--passes", "0..2", "--noise", "5", "-o", o],
+            "noise target",
+        ),
         // Rejected by the argument parser itself, still on one line.
         (vec!["render", "--width", "nan", "-o", o], "--width"),
         (vec!["render", "--spp", "2.5", "-o", o], "--spp"),

@@ -40,9 +40,10 @@ fn scene(name: &str, seed: u64) -> Scene {
 
 fn reference(name: &str, seed: u64) -> Vec<f64> {
     let renderer = Renderer::new(&scene(name, seed)).unwrap();
-    let (film, _) = render_blocking(&renderer, &AtomicBool::new(false), |_, _| {})
+    let film = render_blocking(&renderer, &AtomicBool::new(false), |_, _| {})
         .unwrap()
-        .unwrap();
+        .unwrap()
+        .film;
     luminance(&film.to_rgb())
 }
 

@@ -23,9 +23,10 @@ fn model_error(name: &str) -> f64 {
     scene.render.spp = 96;
     let renderer = Renderer::new(&scene).unwrap();
     let model = renderer.sky_model_image();
-    let (film, _) = render_blocking(&renderer, &AtomicBool::new(false), |_, _| {})
+    let film = render_blocking(&renderer, &AtomicBool::new(false), |_, _| {})
         .unwrap()
-        .unwrap();
+        .unwrap()
+        .film;
     let reference = film.to_rgb();
     let sun = renderer.sun_direction();
     let y = |p: [f32; 3]| rec709_luminance(p.map(f64::from));
@@ -168,9 +169,10 @@ fn coarse_passes_bring_the_preview_near_the_reference() {
         let mut s = scene.clone();
         s.render.seed = seed;
         let renderer = Renderer::new(&s).unwrap();
-        let (film, _) = render_blocking(&renderer, &AtomicBool::new(false), |_, _| {})
+        let film = render_blocking(&renderer, &AtomicBool::new(false), |_, _| {})
             .unwrap()
-            .unwrap();
+            .unwrap()
+            .film;
         film.to_rgb()
     };
     let (a, b) = (render(1), render(2));

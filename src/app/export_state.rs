@@ -11,6 +11,9 @@ pub const MAX_EXPORT_SPP: u32 = 1 << 16;
 pub const MAX_EXPORT_WIDTH: u32 = 16_384;
 /// Export panorama sizes offered (width; the height is half of it).
 pub const EXPORT_WIDTHS: [u32; 5] = [512, 1024, 2048, 4096, 8192];
+/// The noise target an export offers first, percent: the level at which
+/// `BENCHMARKS.md` gives a 4096×2048 export's time.
+pub const DEFAULT_EXPORT_NOISE_PERCENT: f64 = 1.0;
 /// Longest timelapse the app offers, minutes (a week).
 pub const MAX_TIMELAPSE_MINUTES: u32 = 7 * 24 * 60;
 
@@ -19,8 +22,12 @@ pub const MAX_TIMELAPSE_MINUTES: u32 = 7 * 24 * 60;
 pub struct ExportSettings {
     /// Width in pixels; the height is half of it (equirectangular, 2:1).
     pub width: u32,
-    /// Samples per pixel.
+    /// Samples per pixel: the most, where a noise target may stop the
+    /// export sooner.
     pub spp: u32,
+    /// Stop once the estimated noise is at most this many percent
+    /// (`render --noise`); `None`: `spp` passes.
+    pub noise_percent: Option<f64>,
     /// A sequence of panoramas over time instead of one.
     pub timelapse: TimelapseSettings,
     /// Write every compositing layer beside the image (`render --layers`).
@@ -35,6 +42,7 @@ impl Default for ExportSettings {
         Self {
             width: 4096,
             spp: 64,
+            noise_percent: None,
             timelapse: TimelapseSettings::default(),
             layers: false,
             fast: false,

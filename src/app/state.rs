@@ -561,6 +561,7 @@ impl AppState {
         scene.render.width = width;
         scene.render.height = width / 2;
         scene.render.spp = self.export.spp.clamp(1, MAX_EXPORT_SPP);
+        scene.render.noise_percent = self.export.noise_percent;
         // The fast mode writes the image alone.
         if self.export.fast {
             scene.render.mode = crate::scene::RenderMode::Fast;
@@ -586,6 +587,14 @@ impl AppState {
     /// Set the export sample count, 1–[`MAX_EXPORT_SPP`].
     pub fn set_export_spp(&mut self, spp: u32) {
         self.export.spp = spp.clamp(1, MAX_EXPORT_SPP);
+    }
+
+    /// Set the export's noise target, percent (clamped to the scene's
+    /// range), or none.
+    pub fn set_export_noise(&mut self, percent: Option<f64>) {
+        self.export.noise_percent = percent
+            .filter(|p| p.is_finite())
+            .map(|p| p.clamp(crate::scene::MIN_NOISE_PERCENT, 100.0));
     }
 
     /// Set the timelapse's frame count, 1–[`MAX_FRAMES`].
@@ -791,6 +800,15 @@ mod tests {
             (1024, 512, 3)
         );
         assert_eq!(export.sun, state.scene().sun);
+        assert_eq!(export.render.noise_percent, None);
+        state.set_export_noise(Some(0.0));
+        assert_eq!(
+            state.export_scene().render.noise_percent,
+            Some(crate::scene::MIN_NOISE_PERCENT)
+        );
+        state.set_export_noise(Some(1.5));
+        state.export_scene().validate().unwrap();
+        assert_eq!(state.export_scene().render.noise_percent, Some(1.5));
     }
 
     #[test]

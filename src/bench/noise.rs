@@ -8,12 +8,12 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
+use crate::render::noise_estimate::outside_sun_cone;
 use crate::render::preview::Preview;
 use crate::render::{Camera, Film, Renderer};
 use crate::scene::Scene;
 
-/// Half-angle of the cone about the sun's centre left out of the noise, degrees.
-pub const SUN_CONE_DEG: f64 = 2.0;
+pub use crate::render::noise_estimate::SUN_CONE_DEG;
 
 /// Which pixels count as sky.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -59,28 +59,6 @@ pub fn sky_mask(
         SkyMask::AboveHorizon => dir.z > 0.0,
         SkyMask::Lit => mean_y.get(i).is_some_and(|&v| v > 0.0),
     })
-}
-
-/// The pixels (row-major) whose centre's ray is farther than
-/// [`SUN_CONE_DEG`] from `sun` and for which `keep(index, direction)`
-/// holds.
-fn outside_sun_cone(
-    camera: &Camera,
-    width: u32,
-    height: u32,
-    sun: DVec3,
-    keep: impl Fn(usize, DVec3) -> bool,
-) -> Vec<bool> {
-    let cos_cone = SUN_CONE_DEG.to_radians().cos();
-    (0..height)
-        .flat_map(|y| (0..width).map(move |x| (x, y)))
-        .enumerate()
-        .map(|(i, (x, y))| {
-            camera
-                .direction(f64::from(x) + 0.5, f64::from(y) + 0.5)
-                .is_some_and(|dir| dir.normalize().dot(sun) < cos_cone && keep(i, dir))
-        })
-        .collect()
 }
 
 /// Relative RMS noise of the mean of two independent images,

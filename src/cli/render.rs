@@ -8,9 +8,10 @@ use std::time::Instant;
 use clap::Args;
 
 use super::scene_args::{check_output_path, CliError, SceneArgs};
-use crate::export::{self, FramePattern, FrameRange, Timelapse};
+use crate::export::{self, FramePattern, FrameRange, Timelapse, Written};
 use crate::output::stdout::emit;
 use crate::output::OutputFormat;
+use crate::render::noise_estimate::Stop;
 use crate::render::parts::{PassRange, Tile};
 use crate::scene::{Scene, SceneError};
 
@@ -372,16 +373,14 @@ pub fn run(
     for (done, job) in jobs.iter().enumerate() {
         let start = Instant::now();
         let offset = done as u64 * spp;
-        let (spp, paths, discarded) = pool.install(|| {
+        let written = pool.install(|| {
             export::render_to_file(&job.scene, &job.path, &cancel, |pass, _| {
                 bar.set_position(offset + u64::from(pass));
             })
         })?;
         let seconds = start.elapsed().as_secs_f64();
         bar.suspend(|| {
-            report(
-                &job.scene, &job.label, &job.path, spp, paths, discarded, seconds,
-            );
+            report(&job.scene, &job.label, &job.path, &written, seconds);
         });
     }
     bar.finish_and_clear();
@@ -389,15 +388,13 @@ pub fn run(
 }
 
 /// The line `render` prints per file written.
-fn report(
-    scene: &Scene,
-    label: &str,
-    path: &Path,
-    spp: u32,
-    paths: u64,
-    discarded: u64,
-    seconds: f64,
-) {
+fn report(scene: &Scene, label: &str, path: &Path, written: &Written, seconds: f64) {
+    let Written {
+        spp,
+        paths,
+        discarded,
+        ..
+    } = *written;
     // Adaptive sampling gives noisy pixels more than one sample per
     // pass: say how many paths a pixel got on average.
     let pixels = f64::from(scene.render.width) * f64::from(scene.render.height);
@@ -417,8 +414,32 @@ fn report(
     } else {
         format!(" ({})", notes.join("; "))
     };
+    // How it stopped, where a rule other than the passes did, and the
+    // noise where it was estimated.
+    let mut stop = Vec::new();
+    if let Some(noise) = written.noise {
+        let target = scene
+            .render
+            .noise_percent
+            .map(|t| format!(", target {t} %"))
+            .unwrap_or_default();
+        stop.push(format!("estimated noise {:.2} %{target}", 100.0 * noise));
+    }
+    match written.stop {
+        Stop::Passes if scene.render.noise_percent.is_some() => {
+            stop.push(format!("the noise target not met in --spp {spp} passes"));
+        }
+        Stop::Passes => {}
+        Stop::NoiseTarget => stop.push("stopped at the noise target".to_owned()),
+        Stop::TimeLimit => stop.push("stopped by the time limit".to_owned()),
+    }
+    let stop = if stop.is_empty() {
+        String::new()
+    } else {
+        format!("; {}", stop.join(", "))
+    };
     emit(&format!(
-        "{label}{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M camera paths/s), {discarded} samples discarded -> {}\n",
+        "{label}{}x{} at {spp} spp{adaptive} in {seconds:.2} s ({:.3} M camera paths/s), {discarded} samples discarded{stop} -> {}\n",
         scene.render.width,
         scene.render.height,
         paths as f64 / seconds / 1e6,

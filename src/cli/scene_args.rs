@@ -89,6 +89,17 @@ pub struct SceneArgs {
     /// [default: 64].
     #[arg(long, allow_negative_numbers = true, value_name = "N")]
     pub spp: Option<i64>,
+    /// Stop once the image's estimated relative noise is at most PCT
+    /// percent, 0.01 to 100 (over the whole image, the sun's 2° cone left
+    /// out; estimated from the spread of the passes, after 8 passes at
+    /// least); --spp stays the most passes [default: none, --spp passes].
+    #[arg(long, allow_negative_numbers = true, value_name = "PCT")]
+    pub noise: Option<f64>,
+    /// Start no pass that would end (if as long as the last) more than
+    /// SECONDS after the first pass began; the first pass always runs
+    /// [default: none].
+    #[arg(long, allow_negative_numbers = true, value_name = "SECONDS")]
+    pub time_limit: Option<f64>,
     /// One sample per pixel per pass everywhere (no adaptive sampling).
     #[arg(long)]
     pub no_adaptive: bool,
@@ -258,6 +269,12 @@ impl SceneArgs {
         }
         if let Some(v) = self.spp {
             scene.render.spp = count("spp", v, i64::from(crate::scene::MAX_SPP))?;
+        }
+        if let Some(v) = self.noise {
+            scene.render.noise_percent = Some(v);
+        }
+        if let Some(v) = self.time_limit {
+            scene.render.time_limit_s = Some(v);
         }
         if let Some(v) = self.seed {
             scene.render.seed = v;

@@ -63,6 +63,10 @@ struct RaySummary {
     z: f64,
 }
 
+/// Bytes per pixel of the variance layer's sums: the pass and running
+/// sums (f64) and the pass's splats (f32).
+pub(super) const VARIANCE_SUMS_BYTES: u64 = 5 * 8 + 4;
+
 impl Renderer {
     /// Bytes per pixel the layers of this scene's output add at the end
     /// of a render: their f32 planes and the RGB image's planes beside them.
@@ -76,10 +80,19 @@ impl Renderer {
         // pixel's centre sees the ground (the sun's few sums are left out).
         let exact = super::exact::ExactPlane::BYTES_PER_PIXEL as u64;
         let sums = if self.path_layers() { exact + 1 } else { 0 }
-            // The variance's pass and running sums (f64) and the pass's
-            // splats (f32).
-            + if self.variance_layer() { 5 * 8 + 4 } else { 0 };
+            + if self.variance_layer() {
+                VARIANCE_SUMS_BYTES
+            } else {
+                0
+            };
         4 * (3 + channels as u64) + sums
+    }
+
+    /// Whether the films keep the variance layer's sums: the layer is
+    /// asked for, or a noise target needs them
+    /// ([`super::noise_estimate`]).
+    pub fn variance_sums(&self) -> bool {
+        self.variance_layer() || self.scene.render.noise_percent.is_some()
     }
 
     /// Whether the output has any of the layers estimated from the paths

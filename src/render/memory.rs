@@ -39,7 +39,7 @@ impl Renderer {
         } else {
             film
         };
-        let film = if self.variance_layer() {
+        let film = if self.variance_sums() {
             film.try_with_variance().map_err(|_| self.out_of_memory())?
         } else {
             film
@@ -68,8 +68,9 @@ impl Renderer {
     /// luminance, its spread, a bin and the plan: 19 bytes) and the output
     /// (the RGB image, 12 bytes, and a PNG's 8-bit copy, 3), plus the
     /// layers' planes where the output has layers
-    /// ([`Self::layer_bytes_per_pixel`]) and a spectral image's sums and
-    /// planes ([`film_spectral::spectral_bytes_per_pixel`]). The tables the
+    /// ([`Self::layer_bytes_per_pixel`]), a spectral image's sums and
+    /// planes ([`film_spectral::spectral_bytes_per_pixel`]) and a noise
+    /// target's variance sums, 44 ([`super::noise_estimate`]). The tables the
     /// integrator reads do not grow with the image and are left out.
     pub fn memory_needed_bytes(&self) -> u64 {
         let pixels = u64::from(self.scene.render.width) * u64::from(self.scene.render.height);
@@ -87,7 +88,13 @@ impl Renderer {
         let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {
             film_spectral::spectral_bytes_per_pixel(bands, self.plan.circle_splatting)
         });
-        pixels * (film + planning.max(output) + spectral + self.layer_bytes_per_pixel())
+        // A noise target's variance sums, where no layer counted them.
+        let variance = if self.variance_sums() && !self.variance_layer() {
+            super::layers::VARIANCE_SUMS_BYTES
+        } else {
+            0
+        };
+        pixels * (film + planning.max(output) + spectral + variance + self.layer_bytes_per_pixel())
     }
 
     /// Checks, before any work, that [`Self::memory_needed_bytes`] can be

@@ -33,6 +33,7 @@ pub mod lanes;
 pub mod layers;
 pub mod medium;
 pub mod memory;
+pub mod noise_estimate;
 pub mod observer_depths;
 pub mod parts;
 pub mod preview;

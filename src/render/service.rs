@@ -10,6 +10,7 @@ use std::sync::{Arc, Condvar, Mutex};
 use std::thread::JoinHandle;
 use std::time::{Duration, Instant};
 
+use super::noise_estimate::{Stop, StopRules};
 use super::parts::{PassRange, Tile};
 use super::preview::Preview;
 use super::{Film, OutOfMemory, Renderer};
@@ -304,27 +305,60 @@ fn publish_image(shared: &Shared, epoch: u64, frame: Frame) {
     state.frame = Some(Arc::new(frame));
 }
 
-/// Render a scene to completion on the calling thread's rayon pool, reporting
-/// progress after each pass; returns `None` if `cancel` was set, and an
-/// error before any work where the render's memory is not there
-/// ([`Renderer::check_memory`]).
+/// A render done by [`render_blocking`].
+pub struct Rendered {
+    /// The film of every pass rendered.
+    pub film: Film,
+    /// Camera paths traced.
+    pub paths: u64,
+    /// Passes rendered (the least samples a pixel has).
+    pub passes: u32,
+    /// The image's estimated relative noise (0.01: 1 %), where its film
+    /// keeps the variance layer ([`super::noise_estimate`]).
+    pub noise: Option<f64>,
+    /// Why it stopped.
+    pub stop: Stop,
+}
+
+/// Render a scene on the calling thread's rayon pool until its stopping
+/// rules say (`spp` passes, a noise target, a time limit:
+/// [`StopRules`]), reporting progress after each pass; returns `None` if
+/// `cancel` was set, and an error before any work where the render's
+/// memory is not there ([`Renderer::check_memory`]).
 pub fn render_blocking(
     renderer: &Renderer,
     cancel: &AtomicBool,
-    on_pass: impl FnMut(u32, &Film),
-) -> Result<Option<(Film, u64)>, OutOfMemory> {
-    let (width, height) = (renderer.scene.render.width, renderer.scene.render.height);
-    let passes = PassRange {
-        start: 0,
-        end: renderer.scene.render.spp,
-    };
-    render_part_blocking(
-        renderer,
-        passes,
-        Tile::whole(width, height),
-        cancel,
-        on_pass,
-    )
+    mut on_pass: impl FnMut(u32, &Film),
+) -> Result<Option<Rendered>, OutOfMemory> {
+    renderer.check_memory()?;
+    let mut film = renderer.try_new_film()?;
+    let rules = StopRules::new(renderer);
+    let is_cancelled = || cancel.load(Ordering::Relaxed);
+    let start = Instant::now();
+    let (mut paths, mut passes, mut last_end) = (0, 0, Duration::ZERO);
+    loop {
+        let stats = renderer.render_pass(&mut film, passes, &is_cancelled);
+        paths += stats.paths;
+        if !stats.completed {
+            return Ok(None);
+        }
+        passes += 1;
+        on_pass(passes, &film);
+        let elapsed = start.elapsed();
+        let noise = rules.noise(&film);
+        if let Some(stop) =
+            rules.stop_after(passes, noise, elapsed, elapsed.saturating_sub(last_end))
+        {
+            return Ok(Some(Rendered {
+                film,
+                paths,
+                passes,
+                noise,
+                stop,
+            }));
+        }
+        last_end = elapsed;
+    }
 }
 
 /// [`render_blocking`] for one part of a split render: passes `passes` of

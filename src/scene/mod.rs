@@ -189,6 +189,12 @@ pub const MAX_SPP: u32 = 1 << 20;
 /// this is about 8.5 GiB, 10 GiB at sunset; `render` checks before the
 /// first pass that it can have it (`Renderer::check_memory`).
 pub const MAX_PIXELS: u64 = 16_384 * 8_192;
+/// The least noise target, percent (a target of 0 is never met).
+pub const MIN_NOISE_PERCENT: f64 = 0.01;
+/// The shortest time limit, seconds.
+pub const MIN_TIME_LIMIT_S: f64 = 0.001;
+/// The longest time limit, seconds (a year).
+pub const MAX_TIME_LIMIT_S: f64 = 365.0 * 86_400.0;
 /// Largest seed: TOML's integers are signed 64-bit, so a larger one could
 /// not be read back from the scene a render embeds in its EXR.
 pub const MAX_SEED: u64 = i64::MAX as u64;
@@ -201,8 +207,20 @@ pub struct RenderParams {
     pub width: u32,
     /// Image height, pixels.
     pub height: u32,
-    /// Samples (camera paths) per pixel.
+    /// Samples (camera paths) per pixel: the passes over the image, or,
+    /// with a noise target or a time limit, the most passes.
     pub spp: u32,
+    /// Stop once the image's estimated relative noise is at most this many
+    /// percent (after at least [`crate::render::noise_estimate::MIN_PASSES`]
+    /// passes; see [`crate::render::noise_estimate`]); `None`: `spp` passes.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub noise_percent: Option<f64>,
+    /// Start no pass expected (as long as the last) to end later than this
+    /// many seconds after the first pass began (the atmosphere's tables,
+    /// made before it, not counted); the first pass always runs. `None`:
+    /// no limit.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub time_limit_s: Option<f64>,
     /// Seed of the random numbers (same seed, same image).
     pub seed: u64,
     /// Top-of-atmosphere irradiance of 1 W m⁻² nm⁻¹ at every wavelength.
@@ -240,6 +258,8 @@ impl Default for RenderParams {
             width: 512,
             height: 256,
             spp: 64,
+            noise_percent: None,
+            time_limit_s: None,
             seed: 1,
             unit_sun: false,
             observer: Observer::JuddVos,
@@ -644,6 +664,17 @@ impl Scene {
             ));
         }
         check_count("spp", r.spp as usize, 1, MAX_SPP as usize)?;
+        if let Some(percent) = r.noise_percent {
+            check_range("noise target (%)", percent, MIN_NOISE_PERCENT, 100.0)?;
+        }
+        if let Some(seconds) = r.time_limit_s {
+            check_range(
+                "time limit (s)",
+                seconds,
+                MIN_TIME_LIMIT_S,
+                MAX_TIME_LIMIT_S,
+            )?;
+        }
         mode::validate(r.mode, r.fast_scale, &self.output)?;
         if r.seed > MAX_SEED {
             return Err(SceneError::new(

@@ -6,7 +6,8 @@ use egui::{DragValue, Slider};
 
 use super::{Dialog, Request, ERROR_COLOUR};
 use crate::app::state::{
-    AppState, ExportStatus, SequenceStatus, EXPORT_WIDTHS, MAX_EXPORT_SPP, MAX_TIMELAPSE_MINUTES,
+    AppState, ExportStatus, SequenceStatus, DEFAULT_EXPORT_NOISE_PERCENT, EXPORT_WIDTHS,
+    MAX_EXPORT_SPP, MAX_TIMELAPSE_MINUTES,
 };
 use crate::app::sun_place::{format_duration, parse_duration, SunMode};
 use crate::export::MAX_FRAMES;
@@ -34,6 +35,28 @@ impl ExportPanel<'_> {
             .flatten()
     }
 
+    /// "noise ≤ x %": the export's noise target (`render --noise`), beside
+    /// its spp.
+    fn noise_target(&mut self, ui: &mut egui::Ui, noise_percent: Option<f64>) {
+        let tip = "Stop the export once its estimated noise (the whole image's, from the \
+                   spread of its passes, read from the eighth on) is at most this; the spp \
+                   stays the most passes";
+        let mut on = noise_percent.is_some();
+        if ui.checkbox(&mut on, "noise ≤").on_hover_text(tip).changed() {
+            self.state
+                .set_export_noise(on.then_some(DEFAULT_EXPORT_NOISE_PERCENT));
+        }
+        if let Some(mut percent) = noise_percent {
+            let field = DragValue::new(&mut percent)
+                .range(crate::scene::MIN_NOISE_PERCENT..=100.0)
+                .speed(0.05)
+                .suffix(" %");
+            if ui.add(field).on_hover_text(tip).changed() {
+                self.state.set_export_noise(Some(percent));
+            }
+        }
+    }
+
     fn contents(&mut self, ui: &mut egui::Ui) -> Option<Request> {
         let mut request = None;
         let export = self.state.export.clone();
@@ -49,17 +72,22 @@ impl ExportPanel<'_> {
             })
             .response
             .on_hover_text("Size of the equirectangular EXR panorama");
-        let mut spp = export.spp;
-        let spp_slider = Slider::new(&mut spp, 1..=MAX_EXPORT_SPP)
-            .logarithmic(true)
-            .text("Export spp");
-        if ui
-            .add(spp_slider)
-            .on_hover_text("Samples per pixel of the exported panorama")
-            .changed()
-        {
-            self.state.set_export_spp(spp);
-        }
+        ui.horizontal(|ui| {
+            let mut spp = export.spp;
+            let spp_slider = Slider::new(&mut spp, 1..=MAX_EXPORT_SPP)
+                .logarithmic(true)
+                .text("spp");
+            if ui
+                .add(spp_slider)
+                .on_hover_text(
+                    "Samples per pixel of the exported panorama (the most, with a noise target)",
+                )
+                .changed()
+            {
+                self.state.set_export_spp(spp);
+            }
+            self.noise_target(ui, export.noise_percent);
+        });
         if self.state.sun_mode() == SunMode::DatePlace {
             self.timelapse_settings(ui);
         }
