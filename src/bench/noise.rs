@@ -8,7 +8,7 @@ use std::time::Instant;
 use glam::DVec3;
 use serde::Serialize;
 
-use crate::render::noise_estimate::outside_sun_cone;
+use crate::render::noise_estimate::{outside_sun_cone, relative_noise_of};
 use crate::render::preview::Preview;
 use crate::render::{Camera, Film, Renderer};
 use crate::scene::Scene;
@@ -134,6 +134,10 @@ pub struct NoiseRun {
     pub noise_whole: f64,
     /// Pixels of the whole image, the sun's cone left out.
     pub whole_pixels: usize,
+    /// `noise_whole` as A and B estimate it each from its own passes
+    /// ([`crate::render::noise_estimate`], what `render --noise` reads),
+    /// for their mean: √(e_A² + e_B²)/2. A check of that estimate.
+    pub noise_whole_estimate: f64,
     /// Correlation of the relative A − B differences of horizontal
     /// neighbours, of vertical ones, and of pixels at the same angle from
     /// the sun (on one circle of [`crate::render::circles`], neither
@@ -273,6 +277,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         ground_pixels: 0,
         noise_whole: f64::NAN,
         whole_pixels: 0,
+        noise_whole_estimate: f64::NAN,
         row_correlation: f64::NAN,
         column_correlation: f64::NAN,
         circle_correlation: f64::NAN,
@@ -286,8 +291,11 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     };
     let mut geometry = None;
     let mut cpu_seconds = 0.0;
+    let mut variances = Vec::with_capacity(2);
     for (k, what) in ["A", "B"].into_iter().enumerate() {
-        let s = with_seed(scene, seed, k as u64, what)?;
+        let mut s = with_seed(scene, seed, k as u64, what)?;
+        // The variance layer's sums, for the noise each estimates alone.
+        s.output.layers.push("variance".into());
         let renderer = Renderer::new(&s).map_err(|e| e.to_string())?;
         let r = render_for(&renderer, budget_s / 2.0);
         run.seconds += r.seconds;
@@ -296,6 +304,7 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
         run.passes[k] = r.passes;
         run.discarded += r.film.discarded;
         images.push(luminance(&r.film));
+        variances.push(r.film.variance_plane());
         geometry = Some((
             renderer.camera().clone(),
             renderer.sun_direction(),
@@ -332,6 +341,16 @@ pub fn measure_noise(scene: &Scene, budget_s: f64, seed: u64) -> Result<NoiseRun
     (run.whole_pixels, run.ground_pixels) = (count(&whole), count(&ground));
     run.noise_whole = relative_noise(&images[0], &images[1], &whole);
     run.noise_ground = relative_noise(&images[0], &images[1], &ground);
+    let estimates: Vec<f64> = variances
+        .iter()
+        .zip(&images)
+        .map(|(v, y)| {
+            v.as_ref()
+                .and_then(|v| relative_noise_of(v, y, &whole))
+                .unwrap_or(f64::NAN)
+        })
+        .collect();
+    run.noise_whole_estimate = estimates.iter().map(|e| e * e).sum::<f64>().sqrt() / 2.0;
     let (wu, hu) = (w as usize, h as usize);
     let pairs = crate::render::mirror_pairs(scene);
     let halves = crate::render::mirror_halves(scene);

@@ -303,24 +303,25 @@ pub fn format_report(report: &Report) -> String {
     let _ = writeln!(out);
     let _ = writeln!(
         out,
-        "What the user sees (sun cone excluded): noise over the ground and the whole image, the whole image's time to 1 % at 4096×2048 (extrapolated), the noise's correlation between neighbours (rows, columns) and along the splats' circles, and the error of the preview's first frame (the sky model) and of the first Monte Carlo pass against the reference.\n"
+        "What the user sees (sun cone excluded): noise over the ground and the whole image (and the latter as the renders estimate it from their own passes, what render --noise reads), the whole image's time to 1 % at 4096×2048 (extrapolated), the noise's correlation between neighbours (rows, columns) and along the splats' circles, and the error of the preview's first frame (the sky model) and of the first Monte Carlo pass against the reference.\n"
     );
     let _ = writeln!(
         out,
-        "| scene | noise sky | noise ground | noise whole | 4K to 1 % | corr. rows | corr. columns | corr. circles | first-frame (model) error | first-pass error | preview error at 2 s |"
+        "| scene | noise sky | noise ground | noise whole | its estimate | 4K to 1 % | corr. rows | corr. columns | corr. circles | first-frame (model) error | first-pass error | preview error at 2 s |"
     );
     let _ = writeln!(
         out,
-        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
+        "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|"
     );
     for (r, d) in report.scenes.iter().zip(&report.details) {
         let _ = writeln!(
             out,
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} | {} |",
             r.scene,
             pct(r.noise_at_budget),
             pct(r.noise_ground_at_budget),
             pct(r.noise_whole_at_budget),
+            pct(d.run.noise_whole_estimate),
             minutes(r.time_to_1pct_4k_s),
             num(d.run.row_correlation, 3),
             num(d.run.column_correlation, 3),

@@ -68,10 +68,18 @@ pub fn outside_sun_cone(
 /// two passes (or where it keeps none) or where no masked pixel has light.
 pub fn relative_noise(film: &Film, mask: &[bool]) -> Option<f64> {
     let variance = film.variance_plane()?;
+    let w = film.width as usize;
+    let luminance: Vec<f64> = (0..variance.len())
+        .map(|i| film.xyz((i % w) as u32, (i / w) as u32)[1])
+        .collect();
+    relative_noise_of(&variance, &luminance, mask)
+}
+
+/// [`relative_noise`] from each pixel's `variance` of its mean luminance
+/// and that mean, `luminance` (row-major, cd m⁻²), over `mask`.
+pub fn relative_noise_of(variance: &[f32], luminance: &[f64], mask: &[bool]) -> Option<f64> {
     let (mut n, mut variance_sum, mut luminance_sum) = (0usize, 0.0, 0.0);
-    for (i, (&keep, &v)) in mask.iter().zip(&variance).enumerate() {
-        let w = film.width as usize;
-        let y = film.xyz((i % w) as u32, (i / w) as u32)[1];
+    for ((&keep, &v), &y) in mask.iter().zip(variance).zip(luminance) {
         if keep && y > 0.0 && y.is_finite() {
             n += 1;
             variance_sum += f64::from(v);
