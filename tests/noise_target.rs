@@ -6,6 +6,7 @@
 use std::sync::atomic::AtomicBool;
 
 use skyrender::render::noise_estimate::{outside_sun_cone, Stop, MIN_PASSES};
+use skyrender::render::preview::Preview;
 use skyrender::render::service::{render_blocking, Rendered};
 use skyrender::render::Renderer;
 use skyrender::scene::{CameraKind, Scene};
@@ -88,4 +89,31 @@ fn a_render_stopped_at_its_noise_target_has_that_noise() {
         .zip(&ya)
         .all(|(x, y)| x.to_bits() == y.to_bits());
     assert!(same, "the target changed the image");
+}
+
+/// The preview's frames carry the full passes' noise from the eighth pass
+/// on (the app's status bar shows it), falling as the passes add up; the
+/// coarse phase's frames, before any full pass, carry none.
+#[test]
+fn the_preview_reports_its_passes_noise_from_the_eighth_on() {
+    let mut scene = Scene::preset("midday").unwrap();
+    scene.camera.kind = CameraKind::Equirect;
+    (scene.render.width, scene.render.height) = (64, 32);
+    scene.render.spp = 16;
+    let renderer = Renderer::new(&scene).unwrap();
+    let mut preview = Preview::new(&renderer);
+    let mut noises = Vec::new();
+    while let Some(shown) = preview.step(&|| false) {
+        if shown.spp < MIN_PASSES {
+            assert_eq!(shown.noise, None, "pass {}", shown.spp);
+        } else {
+            let noise = shown.noise.expect("a noise from the eighth pass on");
+            assert!(noise > 0.0 && noise < 1.0, "{noise}");
+            noises.push(noise);
+        }
+    }
+    assert_eq!(noises.len() as u32, 16 - MIN_PASSES + 1);
+    // Noise ∝ 1/√passes: after twice the passes, well below the first.
+    let (first, last) = (noises[0], noises[noises.len() - 1]);
+    assert!(last < 0.85 * first, "{first} → {last}");
 }

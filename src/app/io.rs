@@ -414,6 +414,7 @@ mod tests {
             finished: true,
             model_weight: 0.0,
             coarse_passes: 0,
+            noise: None,
         }
     }
 

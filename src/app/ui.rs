@@ -934,6 +934,7 @@ mod tests {
             finished: false,
             model_weight: 0.4,
             coarse_passes: 0,
+            noise: None,
         };
         let at = 1500 * MS;
         let both = screenshot_report(

@@ -18,7 +18,7 @@
 use std::time::{Duration, Instant};
 
 use super::sky_model::SkyModel;
-use super::{fast, Film, Renderer};
+use super::{fast, noise_estimate, Film, Renderer};
 use crate::output::RgbImage;
 use crate::spectrum::rec709_luminance;
 
@@ -105,6 +105,10 @@ pub struct Shown {
     pub model_weight: f64,
     /// The full-size passes are all done.
     pub finished: bool,
+    /// The full-size passes' estimated relative noise (0.01: 1 %; what the
+    /// finished image will have had at this pass count), from
+    /// [`noise_estimate::MIN_PASSES`] passes on; `None` before.
+    pub noise: Option<f64>,
 }
 
 /// The coarse render behind the corrected model.
@@ -131,6 +135,10 @@ pub struct Preview<'a> {
     coarse_done: bool,
     corrected: Option<RgbImage>,
     film: Film,
+    /// The pixels the passes' noise is estimated over
+    /// ([`noise_estimate::outside_sun_cone`]); empty where the film keeps
+    /// no variance sums.
+    noise_mask: Vec<bool>,
     pass: u32,
     coarse_passes: u32,
     /// Camera paths traced, coarse and full-size.
@@ -146,6 +154,21 @@ impl<'a> Preview<'a> {
         let coarse_wanted =
             r.spp > 1 && r.width >= 4 * PREVIEW_SCALE && r.height >= 2 * PREVIEW_SCALE;
         let sky = renderer.sky_model();
+        // The variance layer's sums (five numbers a pixel), for the noise
+        // the status bar shows; a preview without them where they do not fit.
+        let (film, noise_mask) = match renderer.new_film().try_with_variance() {
+            Ok(film) => {
+                let mask = noise_estimate::outside_sun_cone(
+                    renderer.camera(),
+                    r.width,
+                    r.height,
+                    renderer.sun_direction(),
+                    |_, _| true,
+                );
+                (film, mask)
+            }
+            Err(_) => (renderer.new_film(), Vec::new()),
+        };
         Self {
             renderer,
             model: sky.image(renderer.camera(), r.width, r.height),
@@ -153,7 +176,8 @@ impl<'a> Preview<'a> {
             coarse: None,
             coarse_done: !coarse_wanted,
             corrected: None,
-            film: renderer.new_film(),
+            film,
+            noise_mask,
             pass: 0,
             coarse_passes: 0,
             paths: 0,
@@ -210,12 +234,16 @@ impl<'a> Preview<'a> {
                 });
             }
         }
+        let noise = (self.pass >= noise_estimate::MIN_PASSES && !self.noise_mask.is_empty())
+            .then(|| noise_estimate::relative_noise(&self.film, &self.noise_mask))
+            .flatten();
         Some(Shown {
             image,
             spp: self.pass,
             coarse_passes: self.coarse_passes,
             model_weight: w,
             finished,
+            noise,
         })
     }
 
@@ -312,6 +340,7 @@ impl<'a> Preview<'a> {
             coarse_passes: self.coarse_passes,
             model_weight: 1.0,
             finished: false,
+            noise: None,
         })
     }
 }

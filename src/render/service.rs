@@ -84,6 +84,10 @@ pub struct Frame {
     /// Coarse passes behind the model's correction in `image`
     /// ([`super::preview`]).
     pub coarse_passes: u32,
+    /// The passes' estimated relative noise (0.01: 1 %), from
+    /// [`super::noise_estimate::MIN_PASSES`] passes on
+    /// ([`super::preview::Shown::noise`]).
+    pub noise: Option<f64>,
 }
 
 pub use super::preview::{model_weight, model_weight_with, MODEL_ERROR, OUTLIER_RATIO};
@@ -257,6 +261,7 @@ fn worker_loop(shared: &Shared) {
                 finished: false,
                 model_weight: 1.0,
                 coarse_passes: 0,
+                noise: None,
             },
         );
         loop {
@@ -287,6 +292,7 @@ fn worker_loop(shared: &Shared) {
                     finished,
                     model_weight: shown.model_weight,
                     coarse_passes: shown.coarse_passes,
+                    noise: shown.noise,
                 },
             );
             if finished {

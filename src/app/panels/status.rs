@@ -64,6 +64,15 @@ impl StatusBar<'_> {
                         "Samples per pixel accumulated / target (a draft is a quick \
                          low-resolution first look after a change)",
                     );
+                    if let Some(noise) = f.noise {
+                        ui.label(format!("noise {:.2} %", 100.0 * noise))
+                            .on_hover_text(
+                                "The passes' estimated noise: the RMS of each pixel's standard \
+                             error, from the spread of its passes, over the mean luminance \
+                             (the sun's 2° cone left out; shown from the eighth pass on) — \
+                             what an export of this many passes would have",
+                            );
+                    }
                     if f.model_weight > 0.0 {
                         let corrected = if f.coarse_passes > 0 {
                             format!(" (corrected by {} coarse passes)", f.coarse_passes)
