@@ -185,16 +185,6 @@ pub fn render_to_file(
     let rendered = service::render_blocking(&renderer, cancel, |pass, _| progress(pass, total))?
         .ok_or(ExportError::Cancelled)?;
     let written = Written::of(&rendered);
-    if renderer.variance_layer() && rendered.passes < 3 {
-        return Err(SceneError::new(
-            "layers",
-            format!(
-                "variance is estimated from the spread of the passes after the first: it needs 3 or more, and the time limit left {}",
-                rendered.passes
-            ),
-        )
-        .into());
-    }
     let film = rendered.film;
     let image = film.try_to_rgb().map_err(|_| renderer.out_of_memory())?;
     let mut metadata = image_metadata(scene, &image, written.spp, written.paths, written.discarded);

@@ -116,6 +116,10 @@ impl Stop {
 /// `spp`, `noise_percent` and `time_limit_s`).
 pub struct StopRules {
     passes: u32,
+    /// Passes a time limit lets run whatever the time: 1, or 3 where the
+    /// output has the variance layer (the spread of the passes after the
+    /// first).
+    least_passes: u32,
     noise_target: Option<f64>,
     time_limit: Option<Duration>,
     /// The pixels the noise is estimated over; empty where the film keeps
@@ -142,6 +146,7 @@ impl StopRules {
         };
         Self {
             passes: r.spp,
+            least_passes: if renderer.variance_layer() { 3 } else { 1 },
             noise_target: r.noise_percent.map(|p| p / 100.0),
             time_limit: r.time_limit_s.map(Duration::from_secs_f64),
             mask,
@@ -161,7 +166,8 @@ impl StopRules {
             .flatten()
     }
 
-    /// Whether to stop after `done` passes whose relative noise is `noise`,
+    /// Whether to stop after `done` passes (`done` ≥ 1) whose relative
+    /// noise is `noise`,
     /// `elapsed` after the start, the last pass having taken `last_pass`;
     /// `None`: render the next pass.
     pub fn stop_after(
@@ -180,7 +186,7 @@ impl StopRules {
             }
         }
         self.time_limit
-            .filter(|&limit| elapsed + last_pass > limit)
+            .filter(|&limit| done >= self.least_passes && elapsed + last_pass > limit)
             .map(|_| Stop::TimeLimit)
     }
 }
@@ -192,6 +198,7 @@ mod tests {
     fn rules(passes: u32, noise_percent: Option<f64>, limit_s: Option<f64>) -> StopRules {
         StopRules {
             passes,
+            least_passes: 1,
             noise_target: noise_percent.map(|p| p / 100.0),
             time_limit: limit_s.map(Duration::from_secs_f64),
             mask: vec![true],
@@ -229,6 +236,16 @@ mod tests {
         assert_eq!(limit.stop_after(3, None, S(7.0), S(2.9)), None);
         assert_eq!(
             limit.stop_after(3, None, S(7.0), S(3.1)),
+            Some(Stop::TimeLimit)
+        );
+        // With the variance layer, three passes at least.
+        let layer = StopRules {
+            least_passes: 3,
+            ..rules(100, None, Some(1.0))
+        };
+        assert_eq!(layer.stop_after(2, None, S(9.0), S(1.0)), None);
+        assert_eq!(
+            layer.stop_after(3, None, S(9.0), S(1.0)),
             Some(Stop::TimeLimit)
         );
         // The passes asked for come first, then the noise.

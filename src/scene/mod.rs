@@ -217,7 +217,8 @@ pub struct RenderParams {
     pub noise_percent: Option<f64>,
     /// Start no pass expected (as long as the last) to end later than this
     /// many seconds after the first pass began (the atmosphere's tables,
-    /// made before it, not counted); the first pass always runs. `None`:
+    /// made before it, not counted); the first pass always runs (the first
+    /// three with the `variance` layer, whose spread needs them). `None`:
     /// no limit.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub time_limit_s: Option<f64>,
