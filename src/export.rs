@@ -645,7 +645,14 @@ pub fn merge_parts(paths: &[PathBuf], output: &Path) -> Result<Scene, String> {
         .try_to_rgb()
         .map_err(|_| format!("not enough memory to merge a {width}×{height} image"))?;
     let total_paths = parts.iter().map(|p| p.paths).sum();
-    let metadata = image_metadata(&scene, &image, spp, total_paths, film.discarded);
+    let mut metadata = image_metadata(&scene, &image, spp, total_paths, film.discarded);
+    // Every part rendered the passes it was given: the header a whole
+    // render of them writes (split renders take no noise target or time
+    // limit).
+    metadata.push((
+        "skyrender:stopped_by".into(),
+        Stop::Passes.describe().into(),
+    ));
     if scene.output.layers.is_empty() {
         output::write_image(
             output,
