@@ -19,6 +19,15 @@ fn luminance(rendered: &Rendered) -> Vec<f64> {
         .collect()
 }
 
+/// `preset` as a `width`×`height` equirect map of at most `spp` passes.
+fn equirect(preset: &str, (width, height): (u32, u32), spp: u32) -> Scene {
+    let mut scene = Scene::preset(preset).unwrap();
+    scene.camera.kind = CameraKind::Equirect;
+    (scene.render.width, scene.render.height) = (width, height);
+    scene.render.spp = spp;
+    scene
+}
+
 fn render(scene: &Scene) -> (Renderer, Rendered) {
     let renderer = Renderer::new(scene).unwrap();
     let rendered = render_blocking(&renderer, &AtomicBool::new(false), |_, _| {})
@@ -36,10 +45,7 @@ fn render(scene: &Scene) -> (Renderer, Rendered) {
 /// the one a render of as many passes without a target makes, to the bit.
 #[test]
 fn a_render_stopped_at_its_noise_target_has_that_noise() {
-    let mut scene = Scene::preset("sunset").unwrap();
-    scene.camera.kind = CameraKind::Equirect;
-    (scene.render.width, scene.render.height) = (128, 64);
-    scene.render.spp = 200;
+    let mut scene = equirect("sunset", (128, 64), 200);
     scene.render.noise_percent = Some(2.0);
     let runs: Vec<_> = [21, 22]
         .into_iter()
@@ -96,10 +102,7 @@ fn a_render_stopped_at_its_noise_target_has_that_noise() {
 /// coarse phase's frames, before any full pass, carry none.
 #[test]
 fn the_preview_reports_its_passes_noise_from_the_eighth_on() {
-    let mut scene = Scene::preset("midday").unwrap();
-    scene.camera.kind = CameraKind::Equirect;
-    (scene.render.width, scene.render.height) = (64, 32);
-    scene.render.spp = 16;
+    let scene = equirect("midday", (64, 32), 16);
     let renderer = Renderer::new(&scene).unwrap();
     let mut preview = Preview::new(&renderer);
     let mut noises = Vec::new();

@@ -158,6 +158,11 @@ impl StopRules {
         self.passes
     }
 
+    /// The noise target, relative (0.01: 1 %), if any.
+    pub fn noise_target(&self) -> Option<f64> {
+        self.noise_target
+    }
+
     /// The relative noise of `film` over the rules' pixels, where it can be
     /// estimated.
     pub fn noise(&self, film: &Film) -> Option<f64> {

@@ -217,6 +217,7 @@ impl<'a> Preview<'a> {
         }
         self.pass += 1;
         let mut image = self.film.to_rgb();
+        let noise = self.noise(&image);
         let finished = self.pass >= target;
         let (model, error) = match &self.corrected {
             Some(corrected) => (corrected, CORRECTED_ERROR),
@@ -234,9 +235,6 @@ impl<'a> Preview<'a> {
                 });
             }
         }
-        let noise = (self.pass >= noise_estimate::MIN_PASSES && !self.noise_mask.is_empty())
-            .then(|| noise_estimate::relative_noise(&self.film, &self.noise_mask))
-            .flatten();
         Some(Shown {
             image,
             spp: self.pass,
@@ -245,6 +243,22 @@ impl<'a> Preview<'a> {
             finished,
             noise,
         })
+    }
+
+    /// The full passes' estimated noise, from their `image` (before any
+    /// blend) and the film's variance, once [`noise_estimate::MIN_PASSES`]
+    /// are in.
+    fn noise(&self, image: &RgbImage) -> Option<f64> {
+        if self.pass < noise_estimate::MIN_PASSES || self.noise_mask.is_empty() {
+            return None;
+        }
+        let variance = self.film.variance_plane()?;
+        let luminance: Vec<f64> = image
+            .pixels
+            .iter()
+            .map(|p| rec709_luminance(p.map(f64::from)))
+            .collect();
+        noise_estimate::relative_noise_of(&variance, &luminance, &self.noise_mask)
     }
 
     /// Coarse passes (as many as took as long as the last composition) and

@@ -351,10 +351,12 @@ pub fn render_blocking(
         passes += 1;
         on_pass(passes, &film);
         let elapsed = start.elapsed();
-        let noise = rules.noise(&film);
+        // Estimated each pass only for a target; else once, at the end.
+        let noise = rules.noise_target().and_then(|_| rules.noise(&film));
         if let Some(stop) =
             rules.stop_after(passes, noise, elapsed, elapsed.saturating_sub(last_end))
         {
+            let noise = noise.or_else(|| rules.noise(&film));
             return Ok(Some(Rendered {
                 film,
                 paths,
