@@ -543,7 +543,9 @@ impl Film {
     /// luminance, (cd m⁻²)²; `None` without variance sums or before two
     /// full passes.
     pub fn variance_plane(&self) -> Option<Vec<f32>> {
-        self.variance.as_ref()?.plane()
+        self.variance
+            .as_ref()?
+            .plane(self.width as usize, self.halves)
     }
 }
 

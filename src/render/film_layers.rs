@@ -26,7 +26,7 @@
 //! sun's, non-zero on a few pixels only, are kept per row as a short list.
 
 use super::alloc::try_filled;
-use super::camera::Mirror;
+use super::camera::{HalfMirror, Mirror};
 use super::exact::{column_entry, ExactPlane, ExactRow, ExactSum};
 
 /// The layers the film estimates from its paths, as named in
@@ -222,21 +222,56 @@ impl VarianceSums {
         self.batches += 1;
     }
 
-    /// Per pixel the estimated variance of its mean luminance; `None`
+    /// Per pixel the estimated variance of its mean luminance, of a film
+    /// `width` pixels wide read with `halves` where it has them; `None`
     /// before two batches.
-    pub(super) fn plane(&self) -> Option<Vec<f32>> {
+    ///
+    /// A batch is a pixel's own samples (and splats) of one pass, so the
+    /// batches' spread gives v, the variance of the pixel's own mean. With
+    /// halves the film reads each part of a pixel with its partner's
+    /// ([`super::film`], "Mirror halves"): a part of share s (g or 1 − g)
+    /// holds s of the pixel's samples, uniform over it, so where the
+    /// variance per sample is about even across the pixel the part's own
+    /// mean has variance v / s; pooled with its partner p's part (as many
+    /// samples) it has (v + v_p) / (4 s), and weighted by s² in the image
+    /// it adds s (v + v_p) / 4 (s v alone where the part is its own
+    /// partner). Together ¼ (v + g v_left + (1 − g) v_right): half the
+    /// pixel's own variance where its partners' match it.
+    pub(super) fn plane(&self, width: usize, halves: Option<HalfMirror>) -> Option<Vec<f32>> {
         let p = f64::from(self.batches);
-        (self.batches >= 2).then(|| {
-            (0..self.sum_w.len())
+        if self.batches < 2 {
+            return None;
+        }
+        let own: Vec<f64> = (0..self.sum_w.len())
+            .map(|i| {
+                let (w, we, wee) = (self.sum_w[i], self.sum_we[i], self.sum_wee[i]);
+                if w <= 0.0 {
+                    return 0.0;
+                }
+                (wee - we * we / w).max(0.0) / ((p - 1.0) * w)
+            })
+            .collect();
+        let Some(halves) = halves else {
+            return Some(own.iter().map(|&v| v as f32).collect());
+        };
+        let g = halves.split;
+        Some(
+            (0..own.len())
                 .map(|i| {
-                    let (w, we, wee) = (self.sum_w[i], self.sum_we[i], self.sum_wee[i]);
-                    if w <= 0.0 {
-                        return 0.0;
-                    }
-                    ((wee - we * we / w).max(0.0) / ((p - 1.0) * w)) as f32
+                    let (x, row) = (i % width, i - i % width);
+                    let part = |share: f64, partner: usize| {
+                        if partner == i {
+                            share * own[i]
+                        } else {
+                            0.25 * share * (own[i] + own[partner])
+                        }
+                    };
+                    let left = part(g, row + halves.left_partner(x, width));
+                    let right = part(1.0 - g, row + halves.right_partner(x, width));
+                    (left + right) as f32
                 })
-                .collect()
-        })
+                .collect(),
+        )
     }
 
     /// Per row, the row's pass sums.

@@ -62,8 +62,9 @@ pub fn mirror_pairs(scene: &Scene) -> Option<Mirror> {
 /// sun's vertical plane is off the pixel grid of an equirect image (a real
 /// date's sun, most often): [`Camera::half_mirror`], where `[render]
 /// mirror_symmetry` is on and no output reads the film's sums otherwise
-/// than the image does (the `sky`, `sun`, `ground` and `variance` layers,
-/// a spectral image: those read each pixel alone there) and the render
+/// than the image does (the `sky`, `sun` and `ground` layers, a spectral
+/// image: those read each pixel alone there; the `variance` layer reads
+/// the halves, `VarianceSums::plane`) and the render
 /// has three passes or more (the draft and the first full pass draw in
 /// the wider part only, [`HalfMirror::in_left`]); `None` otherwise, and
 /// where [`mirror_pairs`] has pairs.
@@ -73,7 +74,7 @@ pub fn mirror_halves(scene: &Scene) -> Option<HalfMirror> {
             .output
             .layers
             .iter()
-            .any(|l| l == "variance" || super::film_layers::PATH_LAYERS.contains(&l.as_str()));
+            .any(|l| super::film_layers::PATH_LAYERS.contains(&l.as_str()));
     if !scene.render.mirror_symmetry
         || own_sums
         || scene.render.spp < 3
