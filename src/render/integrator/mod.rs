@@ -341,10 +341,11 @@ impl<'a> Integrator<'a> {
     }
 
     /// Whether single estimates may be negative (with a control variate
-    /// on, the air's or the ground's: its mean is not); otherwise a
-    /// negative one is a defect.
+    /// on, the air's or the ground's, or shadow rays toward the sun read
+    /// from its table and corrected, [`super::debias`]: their means are
+    /// not); otherwise a negative one is a defect.
     pub fn signed_estimates(&self) -> bool {
-        self.control.is_some() || self.ground_sky.is_some()
+        self.control.is_some() || self.ground_sky.is_some() || self.plan.sun_transmittance_table
     }
 
     /// Camera rays no longer branch from the air (only from the ground):

@@ -208,6 +208,33 @@ mod tests {
         }
     }
 
+    /// A corrected shadow ray is negative where the tracked T̂ falls below
+    /// (1 − q) T̃ on a corrected call (T̃ + (T̂ − T̃)/q < 0), so an
+    /// integrator reading the sun's table calls its estimates signed and
+    /// the film keeps them: dropping the negative ones would raise the
+    /// mean (from orbit, where no control variate makes them signed
+    /// otherwise, one sample in about a million).
+    #[test]
+    fn corrected_shadow_rays_can_be_negative_so_the_estimates_are_signed() {
+        let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
+        let lanes = SpectralLanes::new(Lanes::from([420.0, 510.0, 590.0, 680.0]), 4, &medium, true);
+        let sun = direction_from_az_el(270.0, 2.0);
+        let (with, without) = (plan(2.0, true), plan(2.0, false));
+        let table = Integrator::new(&medium, &with, sun);
+        let mut negative = 0;
+        for x in points(&medium) {
+            for k in 0..2000 {
+                let mut rng = Rng::new(5, k);
+                let to_sun = table.sample_sun_direction(&mut rng);
+                let t = table.shadow(x, to_sun, &lanes, &mut rng);
+                negative += usize::from((0..LANES).any(|j| t[j] < 0.0));
+            }
+        }
+        assert!(negative > 0);
+        assert!(table.signed_estimates());
+        assert!(!Integrator::new(&medium, &without, sun).signed_estimates());
+    }
+
     /// On by default at every sun elevation, off in the draft pass, off
     /// where the options say so or choose another shadow estimator.
     #[test]
