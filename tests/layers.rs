@@ -482,6 +482,57 @@ fn the_sun_and_sky_layers_agree_with_the_probe_restricted_to_their_light() {
     }
 }
 
+/// Asking for the `variance` layer (which `--noise` and the bench's
+/// renders keep too) leaves the image alone, bit for bit: with the sun on
+/// the pixel grid (mirror pairs) and between two columns (mirror halves,
+/// which the layer once turned off, changing the image and its noise).
+#[test]
+fn the_variance_layer_leaves_the_image_alone() {
+    let dir = tempfile::tempdir().unwrap();
+    for azimuth in ["180", "187"] {
+        let image = |layers: bool| {
+            let path = dir.path().join(format!("{azimuth}_{layers}.exr"));
+            let mut args = vec![
+                "render",
+                "--preset",
+                "midday",
+                "--sun-azimuth",
+                azimuth,
+                "--camera",
+                "equirect",
+                "--width",
+                "32",
+                "--height",
+                "16",
+                "--spp",
+                "5",
+                "--seed",
+                "3",
+                "-o",
+            ];
+            args.push(path.to_str().unwrap());
+            if layers {
+                args.extend_from_slice(&["--layers", "variance"]);
+            }
+            let out = skyrender_ok(&args);
+            let file = read_exr_channels(&path).unwrap();
+            let rgb = ["R", "G", "B"].map(|c| file.channels[c].clone());
+            (rgb, String::from_utf8_lossy(&out.stdout).into_owned())
+        };
+        let ((plain, said), (with_layer, _)) = (image(false), image(true));
+        assert!(
+            plain == with_layer,
+            "sun at {azimuth}°: the layer changed the image"
+        );
+        let reading = if azimuth == "180" {
+            "mirror pairs"
+        } else {
+            "mirror halves"
+        };
+        assert!(said.contains(reading), "sun at {azimuth}°: {said}");
+    }
+}
+
 /// Per seed 1–10, a 32×16 panorama of 8 passes with the `variance`
 /// layer: (luminance, variance.Y) per pixel, and the sun's pixel.
 fn variance_renders(dir: &std::path::Path, args: &[&str]) -> (Vec<[Vec<f64>; 2]>, (f64, f64)) {
