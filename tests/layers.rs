@@ -535,7 +535,7 @@ fn the_variance_layer_leaves_the_image_alone() {
 
 /// Per seed 1–10, a 32×16 panorama of 8 passes with the `variance`
 /// layer: (luminance, variance.Y) per pixel, and the sun's pixel.
-fn variance_renders(dir: &std::path::Path, args: &[&str]) -> (Vec<[Vec<f64>; 2]>, (f64, f64)) {
+fn variance_renders(dir: &Path, args: &[&str]) -> (Vec<[Vec<f64>; 2]>, (f64, f64)) {
     let mut renders = Vec::new();
     let mut sun = (0.0, 0.0);
     for seed in 1..=10 {

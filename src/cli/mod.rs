@@ -269,7 +269,7 @@ pub fn run(command: Command) -> Result<(), CliError> {
                     );
                 }
                 let discarded: u64 = spectrum.iter().map(|s| s.discarded).sum();
-                outln!("# {discarded} samples discarded (not finite, or negative without the control variate)");
+                outln!("# {discarded} samples discarded (not finite, or negative where no estimate may be)");
             }
             Ok(())
         }

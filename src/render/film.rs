@@ -75,8 +75,8 @@ pub struct Film {
     /// Passes the row took under the plan (each of a pixel's m samples has
     /// weight 1, so the pixel's weight is the row's plus (m − 1) per pass).
     pub(crate) row_planned_passes: Vec<u32>,
-    /// Samples (and splats) discarded as non-finite (or negative without
-    /// the control variate).
+    /// Samples (and splats) discarded as non-finite (or negative where
+    /// no estimate may be, `Integrator::signed_estimates`).
     pub discarded: u64,
     /// The splats among `discarded`.
     pub(crate) splat_discarded: u64,

@@ -17,8 +17,8 @@ pub struct SpectralEstimate {
     pub radiance: f64,
     /// Its Monte Carlo standard error.
     pub std_error: f64,
-    /// Paths whose estimate was not finite (or negative without the control
-    /// variate): counted as 0,
+    /// Paths whose estimate was not finite (or negative where no estimate
+    /// may be, `Integrator::signed_estimates`): counted as 0,
     /// like a discarded pixel sample.
     pub discarded: u64,
 }

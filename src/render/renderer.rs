@@ -136,8 +136,8 @@ pub struct PassStats {
     pub paths: u64,
     /// Paths splatted along the circles of symmetry ([`circles`]).
     pub splat_paths: u64,
-    /// Samples (and splats) discarded as non-finite (or negative without
-    /// the control variate).
+    /// Samples (and splats) discarded as non-finite (or negative where
+    /// no estimate may be, `Integrator::signed_estimates`).
     pub discarded: u64,
     /// The splats among `discarded`.
     pub splat_discarded: u64,
@@ -295,8 +295,9 @@ impl Renderer {
     }
 
     /// The `sample`-th XYZ sample (Y in cd m⁻²) through pixel (x, y), or
-    /// `None` if the estimate was not finite, or negative without the
-    /// control variate (with it, single estimates may be). A pixel's
+    /// `None` if the estimate was not finite, or negative where no single
+    /// estimate may be (`Integrator::signed_estimates`: a control variate
+    /// or the sun's corrected table makes them signed). A pixel's
     /// samples are numbered across passes: 0 is the draft pass's, 1 the first
     /// full pass's, then consecutively through each pass's samples (one per
     /// pass without a plan, so the number is the pass; see [`Self::render_pass`]).
