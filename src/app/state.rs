@@ -553,7 +553,9 @@ impl AppState {
     /// The scene an HDR panorama export renders: the user's scene with an
     /// equirectangular camera at the export size and sample count — what
     /// `skyrender render --camera equirect --width W --height H --spp N`
-    /// renders for it.
+    /// renders for it. When it stops is the Export panel's alone (its spp
+    /// and noise target): a loaded scene file's `[render] time_limit_s`,
+    /// which the panel does not show, does not cut the export short.
     pub fn export_scene(&self) -> Scene {
         let mut scene = self.scene.clone();
         scene.camera.kind = CameraKind::Equirect;
@@ -562,6 +564,7 @@ impl AppState {
         scene.render.height = width / 2;
         scene.render.spp = self.export.spp.clamp(1, MAX_EXPORT_SPP);
         scene.render.noise_percent = self.export.noise_percent;
+        scene.render.time_limit_s = None;
         // The fast mode writes the image alone.
         if self.export.fast {
             scene.render.mode = crate::scene::RenderMode::Fast;
@@ -809,6 +812,15 @@ mod tests {
         state.set_export_noise(Some(1.5));
         state.export_scene().validate().unwrap();
         assert_eq!(state.export_scene().render.noise_percent, Some(1.5));
+        // A scene file's time limit and noise target: the panel's rule.
+        let mut file = state.scene().clone();
+        file.render.time_limit_s = Some(30.0);
+        file.render.noise_percent = Some(4.0);
+        assert!(state.set_scene(file));
+        assert_eq!(state.scene().render.time_limit_s, Some(30.0));
+        let export = state.export_scene();
+        assert_eq!(export.render.time_limit_s, None);
+        assert_eq!(export.render.noise_percent, Some(1.5));
     }
 
     #[test]
