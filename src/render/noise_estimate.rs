@@ -13,9 +13,11 @@
 //! estimate reads low while a few heavy-tailed passes are all it has (the
 //! draft pass, another estimator, is not in its spread; on Mars at sunset
 //! 0.62× after 3 passes, 0.83× after 5) and slightly high later (the
-//! passes' low-discrepancy points are stratified against each other, which
-//! it takes for independent: 1.07–1.10× after 8 passes from orbit and at
-//! midday): a noise target stops a render no sooner than [`MIN_PASSES`].
+//! passes' low-discrepancy points and wavelengths are stratified against
+//! each other, which it takes for independent: 1.07–1.10× after 8 passes
+//! from orbit and at midday, 1.03× with independent points; the decisions
+//! table of `BENCHMARKS.md`): a noise target stops a render no sooner
+//! than [`MIN_PASSES`].
 //! `tests/noise_target.rs` checks it against two renders.
 //!
 //! A render stopped by its own noise is, strictly, no longer a fixed-count
