@@ -13,7 +13,7 @@ use std::process::Command;
 use skyrender::output::channels::read_exr_channels;
 use skyrender::render::Renderer;
 use skyrender::scene::Scene;
-use skyrender::spectrum::{xyz_to_rec709, ColourMatching};
+use skyrender::spectrum::{rec709_luminance, xyz_to_rec709, ColourMatching};
 
 const SIZE: [&str; 6] = ["--width", "32", "--height", "16", "--spp", "3"];
 
@@ -556,11 +556,7 @@ fn variance_renders(dir: &Path, args: &[&str]) -> (Vec<[Vec<f64>; 2]>, (f64, f64
         sun = (v[0], v[1]);
         let [r, g, b] = ["R", "G", "B"].map(|c| &file.channels[c]);
         let luminance = (0..r.len())
-            .map(|i| {
-                0.212_672_9 * f64::from(r[i])
-                    + 0.715_152_2 * f64::from(g[i])
-                    + 0.072_175_0 * f64::from(b[i])
-            })
+            .map(|i| rec709_luminance([r[i], g[i], b[i]].map(f64::from)))
             .collect();
         let variance = &file.channels["variance.Y"];
         assert!(variance.iter().all(|v| v.is_finite() && *v >= 0.0));
