@@ -29,8 +29,9 @@ fn small(preset: &str, width: u32, height: u32, spp: u32) -> Scene {
 #[test]
 fn same_seed_same_image_whatever_the_thread_count() {
     // Sunset: the camera's paths alone; twilight: with the paths splatted
-    // along the circles of symmetry too.
-    for preset in ["sunset", "twilight"] {
+    // along the circles of symmetry too; midday: the ground's bounces
+    // splatted without the air's.
+    for preset in ["sunset", "twilight", "midday"] {
         let scene = small(preset, 24, 12, 4);
         let one = render(&scene, 1);
         let two = render(&scene, 2);
@@ -593,8 +594,10 @@ fn ground_splatting_leaves_the_ground_alone() {
     // reflects in place of the camera's own bounces; the ground's
     // expectation must not move. As for the sky's splats above, the
     // standard error comes from the spread of band means over independent
-    // seeds. Per band of ground rows of an equirect map at sunset and with
-    // the sun 6° high (the control variate on, then off; at twilight the
+    // seeds. Per band of ground rows of an equirect map at sunset, with
+    // the sun 6° high, at midday and from an airliner (the last two
+    // splat the ground's light without the air's; the control variate on,
+    // then off; at twilight the
     // camera's own bounces are too heavy-tailed for six seeds to pin their
     // mean: two of 24 images came out 40 % brighter) — the horizon's row
     // (the far ground, seen grazing), the
@@ -615,6 +618,9 @@ fn ground_splatting_leaves_the_ground_alone() {
         ("sunset", small("sunset", width, height, 8)),
         ("sun 6° high", low_sun),
         ("sunset, looking down", down),
+        // By day the ground's bounces are splatted without the air's.
+        ("midday", small("midday", width, height, 8)),
+        ("from an airliner", small("airliner", width, height, 8)),
     ];
     for (name, base) in cases {
         let camera = skyrender::render::Camera::new(&base.camera, width, height);

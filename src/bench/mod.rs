@@ -897,9 +897,11 @@ mod tests {
             );
             assert!(r.noise_neighbour_correlation.abs() < 1.0, "{r:?}");
             // The model is near the reference; a draft pass is far from
-            // it, but not absurdly.
+            // it, but not absurdly. At the quick budget the reference's
+            // own noise (taken out in quadrature) can hide the model's
+            // error entirely: then 0.
             assert!(
-                r.first_frame_error > 0.0 && r.first_frame_error < 0.3,
+                r.first_frame_error >= 0.0 && r.first_frame_error < 0.3,
                 "{r:?}"
             );
             assert!(

@@ -295,8 +295,9 @@ pub struct TechniquePlan {
     pub control_source: ControlSource,
     /// Multiply scattered light splatted along circles.
     pub circle_splatting: bool,
-    /// The skylight the ground reflects splatted along circles (only with
-    /// `circle_splatting`).
+    /// The skylight the ground reflects splatted along circles: with
+    /// `circle_splatting` one bounce per path splatted in the air, without
+    /// it bounces of their own (`render::splatting`).
     pub ground_splatting: bool,
     /// The model's skylight as a control variate at ground bounces (never
     /// with a limit on the orders, which it would mix, nor with the
@@ -327,12 +328,14 @@ impl TechniquePlan {
             .control_variate
             .unwrap_or(row.control_variate && conditions.haze_fits_control);
         let camera_samples_asked = options.camera_samples.unwrap_or(CAMERA_SAMPLES);
+        // What the splats need: camera paths that estimate their own share
+        // by next-event points, and circles.
+        let can_splat =
+            camera_samples_asked > 0 && options.next_event_estimation && conditions.circles;
         let circle_splatting = options
             .circle_splatting
             .unwrap_or(row.circle_splatting.applies(conditions.observer_low))
-            && camera_samples_asked > 0
-            && options.next_event_estimation
-            && conditions.circles;
+            && can_splat;
         let camera_samples = options.camera_samples.unwrap_or(if circle_splatting {
             SPLAT_CAMERA_SAMPLES
         } else {
@@ -377,7 +380,7 @@ impl TechniquePlan {
             control_variate: control_variate && options.max_scattering_order.is_none(),
             control_source: options.control_source.unwrap_or_default(),
             circle_splatting,
-            ground_splatting: circle_splatting && options.ground_splatting.unwrap_or(true),
+            ground_splatting: can_splat && options.ground_splatting.unwrap_or(true),
             ground_control: options
                 .ground_control
                 .unwrap_or(conditions.observer_in_air && conditions.haze_fits_model)
@@ -397,6 +400,12 @@ impl TechniquePlan {
     /// The plan for `options` outside a scene ([`Conditions::DAY`]).
     pub fn outside_a_scene(options: &IntegratorOptions) -> Self {
         Self::new(options, &Conditions::DAY)
+    }
+
+    /// Whether a pass splats anything along circles (the air's light or
+    /// the ground's), and the film keeps a splat layer.
+    pub fn splats(&self) -> bool {
+        self.circle_splatting || self.ground_splatting
     }
 
     /// The first (draft) pass's plan: plain delta-tracked camera paths and
@@ -501,8 +510,9 @@ mod tests {
             assert_eq!(plan.control_variate, row.control_variate);
             let splats = row.circle_splatting.applies(true);
             assert_eq!(plan.circle_splatting, splats);
-            // The ground's splats go with the air's.
-            assert_eq!(plan.ground_splatting, splats);
+            // The ground's splats wherever there are circles, with the
+            // air's or without.
+            assert!(plan.ground_splatting && plan.splats());
             let lobe = if row.control_variate {
                 regime::CONTROL_SUN_LOBE
             } else {

@@ -105,8 +105,10 @@ pub struct IntegratorOptions {
     /// The skylight the ground reflects splatted along the same circles:
     /// the camera's rays that meet the ground keep its direct sunlight, and
     /// bounces from points anywhere on the visible ground carry the rest to
-    /// the pixels of half as many points on their circle. Only with
-    /// `circle_splatting`. Unset: on wherever `circle_splatting` is.
+    /// the pixels of half as many points on their circle: one bounce per
+    /// path splatted in the air, or, without `circle_splatting`, bounces of
+    /// their own. Needs what `circle_splatting` needs. Unset: on wherever
+    /// the observer is inside the atmosphere and above the ground.
     pub ground_splatting: Option<bool>,
     /// The approximate sky model's light on the ground as a control
     /// variate at every ground bounce: the bounce adds the exact cosine

@@ -13,6 +13,19 @@ pub fn try_filled<T: Clone>(
     Ok(v)
 }
 
+/// `n` zeroed `[f32; N]`, or an error where the memory is not there. The
+/// zeros come from the allocator's zeroed memory (`vec!` of zeros), whose
+/// pages the kernel maps only when first written: a layer that only part
+/// of the image writes (the ground's splats, by day) holds only that
+/// part. The reservation first asks whether the memory is there, as
+/// [`try_filled`] does; `vec!` itself would abort.
+pub fn try_zeroed<const N: usize>(
+    n: usize,
+) -> Result<Vec<[f32; N]>, std::collections::TryReserveError> {
+    Vec::<[f32; N]>::new().try_reserve_exact(n)?;
+    Ok(vec![[0.0; N]; n])
+}
+
 /// Whether `bytes` can be reserved now: a probe before a render commits
 /// to its buffers (the reservation is released at once).
 pub fn can_reserve(bytes: u64) -> bool {

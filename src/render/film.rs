@@ -48,7 +48,7 @@
 
 use super::adaptive::plan;
 pub use super::adaptive::MAX_SAMPLES_PER_PASS;
-use super::alloc::try_filled;
+use super::alloc::{try_filled, try_zeroed};
 use super::camera::{HalfMirror, Mirror, MirrorAxis};
 use super::exact::{ExactPlane, ExactRow, ExactSum};
 use super::film_layers::{LayerSums, VarianceSums};
@@ -158,9 +158,9 @@ impl Film {
 
     /// The film with a layer for the splats of [`super::circles`].
     pub(crate) fn try_with_splats(mut self) -> Result<Self, std::collections::TryReserveError> {
-        self.splat_sum = try_filled(self.xyz_sum.len(), [0.0; 3])?;
+        self.splat_sum = try_zeroed(self.xyz_sum.len())?;
         if self.halves.is_some() {
-            self.splat_left = try_filled(self.xyz_sum.len(), [0.0; 3])?;
+            self.splat_left = try_zeroed(self.xyz_sum.len())?;
         }
         Ok(self)
     }

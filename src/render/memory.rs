@@ -34,7 +34,7 @@ impl Renderer {
             .with_mirror(self.mirror)
             .try_with_halves(self.halves)
             .map_err(|_| self.out_of_memory())?;
-        let film = if self.plan.circle_splatting {
+        let film = if self.plan.splats() {
             film.try_with_splats().map_err(|_| self.out_of_memory())?
         } else {
             film
@@ -77,7 +77,7 @@ impl Renderer {
         let exact = ExactPlane::BYTES_PER_PIXEL as u64;
         let film = exact
             + if self.halves.is_some() { exact + 8 } else { 0 }
-            + match (self.plan.circle_splatting, self.halves.is_some()) {
+            + match (self.plan.splats(), self.halves.is_some()) {
                 (true, true) => 24,
                 (true, false) => 12,
                 (false, _) => 0,
@@ -86,7 +86,7 @@ impl Renderer {
         let planning = 8 + 4 + 4 + 2 + 1;
         let output = 12 + 3;
         let spectral = self.scene.output.spectral_bands.map_or(0, |bands| {
-            film_spectral::spectral_bytes_per_pixel(bands, self.plan.circle_splatting)
+            film_spectral::spectral_bytes_per_pixel(bands, self.plan.splats())
         });
         // A noise target's variance sums, where no layer counted them.
         let variance = if self.variance_sums() && !self.variance_layer() {

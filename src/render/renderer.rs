@@ -438,7 +438,7 @@ impl Renderer {
         assert!(
             film.mirror == self.mirror
                 && film.halves == self.halves
-                && film.splats() == self.plan.circle_splatting,
+                && film.splats() == self.plan.splats(),
             "render_pass: a film from Renderer::new_film (its mirror pairs, its splat layer) is needed"
         );
         // A part that starts later plans after its own first pass.
@@ -457,9 +457,9 @@ impl Renderer {
         let integrator = self.integrator(pass);
         // Pixels the splats leave out (Camera::pixel_density_bounded) keep
         // the camera's branches from the air (and bounces off the ground).
-        let splatting = (self.plan.circle_splatting && pass > 0).then(|| {
+        let splatting = (self.plan.splats() && pass > 0).then(|| {
             self.integrator(pass)
-                .with_circle_splatting(self.ground_splatter().is_some())
+                .with_splatting(self.plan.circle_splatting, self.ground_splatter().is_some())
         });
         let (mut splat_paths, mut splat_discarded) = (0, 0);
         if let Some(splatting) = &splatting {
@@ -857,9 +857,26 @@ mod tests {
         let mut nadir = small("twilight");
         nadir.sun.elevation_deg = -90.0;
         assert!(!Renderer::new(&nadir).unwrap().new_film().splats());
-        // With the sun low (sunset, 2°): on; high (midday, 45°): off.
-        assert!(Renderer::new(&small("sunset")).unwrap().new_film().splats());
-        assert!(!Renderer::new(&small("midday")).unwrap().new_film().splats());
+        // With the sun low (sunset, 2°): the air's and the ground's; high
+        // (midday, 45°): the ground's alone, from the first full pass on a
+        // bounce per pixel that sees the ground (the lower half, and the
+        // table's count errs somewhat high).
+        let sunset = Renderer::new(&small("sunset")).unwrap();
+        assert!(sunset.plan().circle_splatting && sunset.new_film().splats());
+        let midday = Renderer::new(&small("midday")).unwrap();
+        assert!(!midday.plan().circle_splatting && midday.plan().ground_splatting);
+        let mut film = midday.new_film();
+        assert!(film.splats());
+        let stats: Vec<PassStats> = (0..3)
+            .map(|pass| midday.render_pass(&mut film, pass, &|| false))
+            .collect();
+        assert_eq!(stats[0].splat_paths, 0);
+        for s in &stats[1..] {
+            assert!(
+                (16 * 8 / 4..16 * 8 * 3 / 4).contains(&s.splat_paths),
+                "{s:?}"
+            );
+        }
     }
 
     /// The memory estimate covers what a render holds: the film's buffers
@@ -897,6 +914,7 @@ mod tests {
         scene.render.adaptive_sampling = adaptive_sampling;
         scene.render.mirror_symmetry = false;
         scene.render.integrator.circle_splatting = Some(false);
+        scene.render.integrator.ground_splatting = Some(false);
         Renderer::new(&scene).unwrap()
     }
 

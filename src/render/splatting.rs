@@ -5,6 +5,7 @@
 
 use rayon::prelude::*;
 
+use super::circles::CircleSplatter;
 use super::film_spectral::Splat;
 use super::ground_circles::GroundSplatter;
 use super::medium::{Lanes, SpectralLanes, LANES};
@@ -20,6 +21,14 @@ const GROUND_STREAM: u64 = u64::MAX - 0x96d0;
 /// [`GROUND_SPLATS`] positions: more positions per bounce pay better than
 /// more bounces (`BENCHMARKS.md`).
 const GROUND_WALKS_PER_WALK: u64 = 1;
+/// Ground bounces per pixel that sees the ground
+/// ([`GroundSplatter::ground_pixels`]) in a pass where the ground's
+/// skylight is splatted without the air's (by day): a bounce costs about
+/// two camera paths; at midday from 2 m, where the ground fills half the
+/// image, half a bounce per pixel of the image measured best (a quarter
+/// left the ground noisier, one gave the sky fewer passes;
+/// `BENCHMARKS.md`, ground splatting).
+const GROUND_WALKS_PER_GROUND_PIXEL: f64 = 1.0;
 /// Points splatted per pixel in each pass after the first ([`circles`];
 /// each with two directions and paths): with more, the camera's own
 /// samples (single scattering, the ground) get too few passes; 2 and 3
@@ -51,7 +60,9 @@ struct ChunkSplats {
 
 impl Renderer {
     /// The splats of pass `pass` ([`circles`]): [`splat_paths_per_pixel`]
-    /// paths per pixel, in
+    /// paths per pixel, each with its ground bounces, or where only the
+    /// ground's light is splatted [`GROUND_WALKS_PER_GROUND_PIXEL`]
+    /// bounces per pixel that sees the ground, in
     /// chunks whose splats are added in the chunks' order, so the image
     /// does not depend on the thread count. Stops between batches of chunks
     /// once `cancelled()` returns true; the film divides by the paths
@@ -69,18 +80,38 @@ impl Renderer {
         // Capped: each holds up to CHUNK × (SPLATS_PER_WALK +
         // GROUND_WALKS_PER_WALK × GROUND_SPLATS) splats until added.
         let chunks_per_batch = (8 * rayon::current_num_threads() as u64).min(64);
-        let splatter = self.tables.splatter(
-            &self.medium,
-            || self.integrator(1),
-            &self.camera,
-            self.observer_m,
-        );
-        let Some(splatter) = splatter else {
-            return (0, 0);
+        let splatter = if self.plan.circle_splatting {
+            let splatter = self.tables.splatter(
+                &self.medium,
+                || self.integrator(1),
+                &self.camera,
+                self.observer_m,
+            );
+            if splatter.is_none() {
+                return (0, 0);
+            }
+            splatter
+        } else {
+            None
         };
         let ground = self.ground_splatter();
-        let paths_total =
-            u64::from(film.width) * u64::from(film.height) * splat_paths_per_pixel(pass);
+        let pixels = u64::from(film.width) * u64::from(film.height);
+        // A walk is a path splatted in the air with its ground bounces, or
+        // without the air's splats a single ground bounce.
+        let paths_total = match (splatter, ground) {
+            (Some(_), _) => pixels * splat_paths_per_pixel(pass),
+            // At least one: a ground the table finds no mass for can still
+            // be seen (its uniform share), and must not go without light.
+            (None, Some(g)) => (g.ground_pixels() * GROUND_WALKS_PER_GROUND_PIXEL)
+                .ceil()
+                .max(1.0) as u64,
+            (None, None) => return (0, 0),
+        };
+        let ground_walks_per_walk = if splatter.is_some() {
+            GROUND_WALKS_PER_WALK
+        } else {
+            1
+        };
         let chunks = paths_total.div_ceil(CHUNK);
         let n = self.lanes_per_path();
         let (mut paths, mut discarded) = (0, 0);
@@ -94,36 +125,38 @@ impl Renderer {
                 .into_par_iter()
                 .map(|c| {
                     let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
-                    let per_walk = splatter.splats_per_walk()
+                    let per_walk = splatter.map_or(0, CircleSplatter::splats_per_walk)
                         + ground.as_ref().map_or(0, |g| {
-                            GROUND_WALKS_PER_WALK as usize * g.splats_per_bounce()
+                            ground_walks_per_walk as usize * g.splats_per_bounce()
                         });
                     let mut splats = Vec::with_capacity(CHUNK as usize * per_walk);
                     let mut moments = Vec::with_capacity(CHUNK as usize);
                     let mut discarded = 0;
                     for walk in walks.clone() {
-                        let (mut rng, lanes, pdfs) =
-                            self.splat_walk_start(integrator, pass, SPLAT_STREAM, walk);
-                        let weights = self.xyz_weights(&lanes, pdfs);
-                        let before = splats.len();
-                        let walked = splatter.walk(
-                            integrator,
-                            &self.camera,
-                            &lanes,
-                            &weights,
-                            &learned,
-                            &mut rng,
-                            &mut splats,
-                        );
-                        over_densities(&mut splats[before..], pdfs, n);
-                        discarded += walked.discarded;
-                        moments.extend(walked.moment);
+                        if let Some(splatter) = splatter {
+                            let (mut rng, lanes, pdfs) =
+                                self.splat_walk_start(integrator, pass, SPLAT_STREAM, walk);
+                            let weights = self.xyz_weights(&lanes, pdfs);
+                            let before = splats.len();
+                            let walked = splatter.walk(
+                                integrator,
+                                &self.camera,
+                                &lanes,
+                                &weights,
+                                &learned,
+                                &mut rng,
+                                &mut splats,
+                            );
+                            over_densities(&mut splats[before..], pdfs, n);
+                            discarded += walked.discarded;
+                            moments.extend(walked.moment);
+                        }
                         // The ground's bounces, each a share of the walk's
                         // unit (the film divides by walks), with their own
                         // generators and wavelengths.
                         if let Some(ground) = ground {
-                            for g in 0..GROUND_WALKS_PER_WALK {
-                                let index = walk * GROUND_WALKS_PER_WALK + g;
+                            for g in 0..ground_walks_per_walk {
+                                let index = walk * ground_walks_per_walk + g;
                                 let (mut rng, lanes, pdfs) =
                                     self.splat_walk_start(integrator, pass, GROUND_STREAM, index);
                                 let weights = self.xyz_weights(&lanes, pdfs);
@@ -133,7 +166,7 @@ impl Renderer {
                                     &self.camera,
                                     &lanes,
                                     &weights,
-                                    1.0 / GROUND_WALKS_PER_WALK as f64,
+                                    1.0 / ground_walks_per_walk as f64,
                                     &mut rng,
                                     &mut splats,
                                 );
@@ -157,7 +190,9 @@ impl Renderer {
             }
             chunk = end;
         }
-        splatter.learn(&mut learned);
+        if let Some(splatter) = splatter {
+            splatter.learn(&mut learned);
+        }
         film.learned_points = learned;
         (paths, discarded)
     }

@@ -723,33 +723,35 @@ impl Scene {
             0,
             crate::plan::MAX_FORCED_COLLISION_DEPTH as usize,
         )?;
-        if i.circle_splatting == Some(true)
-            && self.observer.altitude_m >= self.atmosphere.top_altitude_m
+        if let Some(parameter) = [
+            ("circle_splatting", i.circle_splatting),
+            ("ground_splatting", i.ground_splatting),
+        ]
+        .into_iter()
+        .find_map(|(name, asked)| (asked == Some(true)).then_some(name))
+        .filter(|_| self.observer.altitude_m >= self.atmosphere.top_altitude_m)
         {
             // From above the air the splats' densities follow the light
             // poorly: 70 % noise after 40 s on the `space` bench scene
             // against 2 % without (`BENCHMARKS.md`).
             return Err(SceneError::new(
-                "circle_splatting",
+                parameter,
                 "needs the observer inside the atmosphere (altitude below its top)",
             ));
         }
-        if i.circle_splatting == Some(true)
-            && (i.camera_samples == Some(0) || !i.next_event_estimation)
+        if let Some(parameter) = [
+            ("circle_splatting", i.circle_splatting),
+            ("ground_splatting", i.ground_splatting),
+        ]
+        .into_iter()
+        .find_map(|(name, asked)| (asked == Some(true)).then_some(name))
+        .filter(|_| i.camera_samples == Some(0) || !i.next_event_estimation)
         {
             // The camera paths' share of the light is what their
             // next-event points estimate; without them nothing would.
             return Err(SceneError::new(
-                "circle_splatting",
+                parameter,
                 "needs camera_samples ≥ 1 and next_event_estimation = true",
-            ));
-        }
-        if i.ground_splatting == Some(true) && i.circle_splatting == Some(false) {
-            // The ground's splats go along the circles the air's do, and
-            // with them.
-            return Err(SceneError::new(
-                "ground_splatting",
-                "needs circle_splatting (unset or true)",
             ));
         }
         if i.splitting == Some(true) && !i.russian_roulette {
@@ -840,21 +842,22 @@ mod tests {
     }
 
     #[test]
-    fn circle_splatting_needs_the_camera_rays_next_event_points() {
-        for toml in [
-            "[render.integrator]\ncircle_splatting = true\ncamera_samples = 0",
-            "[render.integrator]\ncircle_splatting = true\nnext_event_estimation = false",
-        ] {
-            let e = Scene::from_toml(toml).unwrap_err();
-            assert_eq!(e.parameter, "circle_splatting", "{toml}");
-            assert!(e.to_string().contains("camera_samples"), "{e}");
+    fn splatting_needs_the_camera_rays_next_event_points() {
+        for splatting in ["circle_splatting", "ground_splatting"] {
+            for toml in [
+                format!("[render.integrator]\n{splatting} = true\ncamera_samples = 0"),
+                format!("[render.integrator]\n{splatting} = true\nnext_event_estimation = false"),
+            ] {
+                let e = Scene::from_toml(&toml).unwrap_err();
+                assert_eq!(e.parameter, splatting, "{toml}");
+                assert!(e.to_string().contains("camera_samples"), "{e}");
+            }
         }
-        // The ground's splats need the air's.
-        let e = Scene::from_toml(
+        // The ground's splats go without the air's.
+        assert!(Scene::from_toml(
             "[render.integrator]\ncircle_splatting = false\nground_splatting = true",
         )
-        .unwrap_err();
-        assert_eq!(e.parameter, "ground_splatting");
+        .is_ok());
         // Off, or unset, either is fine.
         let ok = "[render.integrator]\ncircle_splatting = false\ncamera_samples = 0";
         assert!(Scene::from_toml(ok).is_ok());
@@ -865,6 +868,9 @@ mod tests {
         let e = space.validate().unwrap_err();
         assert_eq!(e.parameter, "circle_splatting");
         assert!(e.to_string().contains("inside the atmosphere"), "{e}");
+        space.render.integrator.circle_splatting = None;
+        space.render.integrator.ground_splatting = Some(true);
+        assert_eq!(space.validate().unwrap_err().parameter, "ground_splatting");
     }
 
     #[test]

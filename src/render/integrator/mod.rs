@@ -105,7 +105,8 @@
 //! anywhere in the visible air, each added to the pixels along its point's
 //! circle about the sun's axis ([`super::circles`],
 //! `Integrator::splat_walk`). With `ground_splatting` (on wherever
-//! circle splatting is) the camera rays that meet the ground keep only its
+//! the observer is in the air, by day without the air's splats) the
+//! camera rays that meet the ground keep only its
 //! direct sunlight: the skylight it reflects comes from bounces at points
 //! anywhere on the visible ground, each added to the pixels along its
 //! point's circle ([`super::ground_circles`], `Integrator::ground_light`).
@@ -348,14 +349,15 @@ impl<'a> Integrator<'a> {
         self.control.is_some() || self.ground_sky.is_some() || self.plan.sun_transmittance_table
     }
 
-    /// Camera rays no longer branch from the air (only from the ground):
-    /// the film gets that light from [`super::circles`] instead; nor, with
-    /// `ground` (where the renderer splats the ground's skylight,
-    /// [`TechniquePlan::ground_splatting`]), from the ground, whose
-    /// reflected skylight then comes from [`super::ground_circles`].
+    /// With `air`, camera rays no longer branch from the air (only from
+    /// the ground): the film gets that light from [`super::circles`]
+    /// instead; with `ground` (where the renderer splats the ground's
+    /// skylight, [`TechniquePlan::ground_splatting`]), nor from the
+    /// ground, whose reflected skylight then comes from
+    /// [`super::ground_circles`].
     #[must_use]
-    pub(crate) fn with_circle_splatting(mut self, ground: bool) -> Self {
-        self.splatting = true;
+    pub(crate) fn with_splatting(mut self, air: bool, ground: bool) -> Self {
+        self.splatting = air;
         self.ground_splatting = ground;
         self
     }
