@@ -259,8 +259,9 @@ impl Film {
     }
 
     /// The image at pixel `index` (row-major). With splats, a row that
-    /// holds only the draft pass shows it alone (it estimated every order
-    /// along the camera rays); from the first full pass on, the draft is
+    /// holds only the draft pass shows the draft without the splats (it
+    /// estimated every order along the camera rays; read with the mirror
+    /// partner where that is on the draft too); from the first full pass on, the draft is
     /// gone from the row (`Self::drop_draft`) and the image is the camera
     /// samples' mean plus the splats'.
     fn mean(&self, index: usize) -> [f64; 3] {
@@ -290,7 +291,9 @@ impl Film {
         }
         let full = |i: usize| self.row_passes[i / w] >= 2;
         if !full(index) {
-            return self.pixel_mean(index, None, sums);
+            // On the draft, with a partner on the draft too: the pair read
+            // as one, as without splats.
+            return self.pixel_mean(index, partner.filter(|&p| !full(p)), sums);
         }
         // A mirror partner still on the draft would mix the draft's
         // estimate into this pixel's.
@@ -583,8 +586,9 @@ impl Film {
         let mut mean = vec![0.0f64; bands];
         for i in 0..w * h {
             // The same reading as `Film::mean`: a pixel with its mirror
-            // partner; with splats, a row still on its draft alone, later
-            // rows the camera mean plus the splats'.
+            // partner; with splats, a row still on its draft without the
+            // splats (with its partner where that is on the draft too),
+            // later rows the camera mean plus the splats'.
             let partner = self
                 .mirror
                 .map(|m| m.partner(i % w, i / w, w, h))
@@ -593,7 +597,7 @@ impl Film {
             let (partner, splats) = if !self.splats() {
                 (partner, false)
             } else if !full(i) {
-                (None, false)
+                (partner.filter(|&p| !full(p)), false)
             } else {
                 (partner.filter(|&p| full(p)), self.splat_paths > 0)
             };
