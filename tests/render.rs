@@ -364,7 +364,8 @@ fn mirror_halves_leave_the_sky_alone_and_halve_its_noise() {
 
 #[test]
 fn mirror_halves_leave_no_structure_between_neighbours() {
-    // From an airliner (no splats, whose arcs correlate pixels by design)
+    // From an airliner (the air's light not splatted: its arcs correlate
+    // pixels by design)
     // with the sun at 250.3°, where the mirror splits the columns of a
     // 96-wide map near their middle (g = 0.49): two renders' relative
     // difference u = (A − B)/(A + B) must not correlate between row

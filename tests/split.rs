@@ -54,8 +54,9 @@ fn adaptive_scene<'a>(preset: &'a str, azimuth: &'a str, spp: &'a str) -> [&'a s
 }
 
 /// Tiles, adaptive sampling off: the merged file is the single render's,
-/// byte for byte — midday (no splats) in 4 bands, and sunset (splats along
-/// the circles of symmetry) in two explicit tiles and a band mix; the sun
+/// byte for byte — midday (the ground's splats alone) in 4 bands, and
+/// sunset (the air's and the ground's splats along the circles of
+/// symmetry) in two explicit tiles and a band mix; the sun
 /// at 250° too, off the columns' grid (mirror halves, their sums in the
 /// parts).
 #[test]

@@ -21,7 +21,8 @@ pub use regime::{Regime, RegimeDefaults, REGIMES};
 
 use crate::atmosphere::AtmosphereParams;
 
-/// Next-event points per camera ray where the renderer does not splat:
+/// Next-event points per camera ray where the renderer does not splat the
+/// air's light:
 /// against 1, less variance at midday for little more time.
 pub const CAMERA_SAMPLES: u32 = 2;
 

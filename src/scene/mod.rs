@@ -723,13 +723,15 @@ impl Scene {
             0,
             crate::plan::MAX_FORCED_COLLISION_DEPTH as usize,
         )?;
-        if let Some(parameter) = [
+        // The first splatting switch the scene turns on, whose needs follow.
+        let splatting_asked = [
             ("circle_splatting", i.circle_splatting),
             ("ground_splatting", i.ground_splatting),
         ]
         .into_iter()
-        .find_map(|(name, asked)| (asked == Some(true)).then_some(name))
-        .filter(|_| self.observer.altitude_m >= self.atmosphere.top_altitude_m)
+        .find_map(|(name, asked)| (asked == Some(true)).then_some(name));
+        if let Some(parameter) =
+            splatting_asked.filter(|_| self.observer.altitude_m >= self.atmosphere.top_altitude_m)
         {
             // From above the air the splats' densities follow the light
             // poorly: 70 % noise after 40 s on the `space` bench scene
@@ -739,13 +741,8 @@ impl Scene {
                 "needs the observer inside the atmosphere (altitude below its top)",
             ));
         }
-        if let Some(parameter) = [
-            ("circle_splatting", i.circle_splatting),
-            ("ground_splatting", i.ground_splatting),
-        ]
-        .into_iter()
-        .find_map(|(name, asked)| (asked == Some(true)).then_some(name))
-        .filter(|_| i.camera_samples == Some(0) || !i.next_event_estimation)
+        if let Some(parameter) =
+            splatting_asked.filter(|_| i.camera_samples == Some(0) || !i.next_event_estimation)
         {
             // The camera paths' share of the light is what their
             // next-event points estimate; without them nothing would.
