@@ -590,6 +590,34 @@ fn circle_splatting_leaves_the_sky_alone() {
 }
 
 #[test]
+fn a_splatting_films_draft_is_read_in_mirror_pairs() {
+    // The draft alone (one pass) of a film with a splat layer: each pixel
+    // read with its mirror partner, as without splats, so the pair shows
+    // one value (read alone, a one-pass image by day had 1.25× the
+    // spread).
+    for preset in ["midday", "sunset"] {
+        let scene = small(preset, 16, 8, 1);
+        let renderer = Renderer::new(&scene).unwrap();
+        assert!(renderer.plan().splats(), "{preset}");
+        let mut film = renderer.new_film();
+        renderer.render_pass(&mut film, 0, &|| false);
+        let mirror = skyrender::render::mirror_pairs(&scene).expect("the sun on the grid");
+        let mut pairs = 0;
+        for y in 0..8 {
+            for x in 0..16 {
+                let p = mirror.partner(x, y, 16, 8);
+                if p != y * 16 + x {
+                    pairs += 1;
+                    let (px, py) = ((p % 16) as u32, (p / 16) as u32);
+                    assert_eq!(film.xyz(x as u32, y as u32), film.xyz(px, py), "{preset}");
+                }
+            }
+        }
+        assert!(pairs > 0);
+    }
+}
+
+#[test]
 fn ground_splatting_leaves_the_ground_alone() {
     // The splats of `render::ground_circles` carry the skylight the ground
     // reflects in place of the camera's own bounces; the ground's

@@ -879,36 +879,6 @@ mod tests {
         }
     }
 
-    #[test]
-    fn a_splatting_films_draft_is_read_in_mirror_pairs() {
-        // The draft alone (one pass) of a film with a splat layer: each
-        // pixel read with its mirror partner, as without splats, so the
-        // pair shows one value (read alone, a one-pass image by day had
-        // 1.25× the spread).
-        for preset in ["midday", "sunset"] {
-            let mut scene = Scene::preset(preset).unwrap();
-            scene.render.width = 16;
-            scene.render.height = 8;
-            let renderer = Renderer::new(&scene).unwrap();
-            let mut film = renderer.new_film();
-            assert!(film.splats());
-            renderer.render_pass(&mut film, 0, &|| false);
-            let mirror = renderer.mirror.expect("the sun on the grid");
-            let mut pairs = 0;
-            for y in 0..8 {
-                for x in 0..16 {
-                    let p = mirror.partner(x, y, 16, 8);
-                    if p != y * 16 + x {
-                        pairs += 1;
-                        let (px, py) = ((p % 16) as u32, (p / 16) as u32);
-                        assert_eq!(film.xyz(x as u32, y as u32), film.xyz(px, py), "{preset}");
-                    }
-                }
-            }
-            assert!(pairs > 0);
-        }
-    }
-
     /// The memory estimate covers what a render holds: the film's buffers
     /// after its plan, and the RGB image beside them.
     #[test]
