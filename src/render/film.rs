@@ -259,11 +259,11 @@ impl Film {
     }
 
     /// The image at pixel `index` (row-major). With splats, a row that
-    /// holds only the draft pass shows the draft without the splats (it
-    /// estimated every order along the camera rays; read with the mirror
-    /// partner where that is on the draft too); from the first full pass on, the draft is
+    /// holds only the draft pass shows the draft without the splats
+    /// ([`Self::past_draft`]); from the first full pass on, the draft is
     /// gone from the row (`Self::drop_draft`) and the image is the camera
-    /// samples' mean plus the splats'.
+    /// samples' mean plus the splats'. Mirror partners are read together
+    /// where their rows are at the same stage ([`Self::read_partner`]).
     fn mean(&self, index: usize) -> [f64; 3] {
         if self.halves.is_some() {
             return self.halves_mean(index);
@@ -281,25 +281,9 @@ impl Film {
         sums: &dyn Fn(usize) -> [ExactSum; 3],
         splats: &dyn Fn(usize) -> bool,
     ) -> [f64; 3] {
-        let (w, h) = (self.width as usize, self.height as usize);
-        let partner = self
-            .mirror
-            .map(|m| m.partner(index % w, index / w, w, h))
-            .filter(|&p| p != index);
-        if !self.splats() {
-            return self.pixel_mean(index, partner, sums);
-        }
-        let full = |i: usize| self.row_passes[i / w] >= 2;
-        if !full(index) {
-            // On the draft, with a partner on the draft too: the pair read
-            // as one, as without splats.
-            return self.pixel_mean(index, partner.filter(|&p| !full(p)), sums);
-        }
-        // A mirror partner still on the draft would mix the draft's
-        // estimate into this pixel's.
-        let partner = partner.filter(|&p| full(p));
+        let partner = self.read_partner(index);
         let mut mean = self.pixel_mean(index, partner, sums);
-        if self.splat_paths > 0 {
+        if self.splat_paths > 0 && self.past_draft(index) {
             let n = if partner.is_some() { 2.0 } else { 1.0 };
             for p in std::iter::once(index).chain(partner).filter(|&p| splats(p)) {
                 for (m, s) in mean.iter_mut().zip(self.splat_sum[p]) {
@@ -308,6 +292,25 @@ impl Film {
             }
         }
         mean
+    }
+
+    /// Whether pixel `index`'s row is past its draft: without splats every
+    /// row is (the draft is one weighted pass among the others); with them
+    /// a row on its draft shows the draft without the splats, which it
+    /// drops at its first full pass (it estimated every order along the
+    /// camera rays, later passes only what the splats do not).
+    pub(super) fn past_draft(&self, index: usize) -> bool {
+        !self.splats() || self.row_passes[index / self.width as usize] >= 2
+    }
+
+    /// The mirror partner pixel `index` is read with: where the film has a
+    /// mirror and both rows are at the same stage, so that no draft is
+    /// mixed into a pixel past its own, nor full passes into a draft.
+    fn read_partner(&self, index: usize) -> Option<usize> {
+        let (w, h) = (self.width as usize, self.height as usize);
+        self.mirror
+            .map(|m| m.partner(index % w, index / w, w, h))
+            .filter(|&p| p != index && self.past_draft(p) == self.past_draft(index))
     }
 
     /// With splats, empties row `y`'s sums of the draft pass before its
@@ -589,18 +592,8 @@ impl Film {
             // partner; with splats, a row still on its draft without the
             // splats (with its partner where that is on the draft too),
             // later rows the camera mean plus the splats'.
-            let partner = self
-                .mirror
-                .map(|m| m.partner(i % w, i / w, w, h))
-                .filter(|&p| p != i);
-            let full = |p: usize| self.row_passes[p / w] >= 2;
-            let (partner, splats) = if !self.splats() {
-                (partner, false)
-            } else if !full(i) {
-                (partner.filter(|&p| !full(p)), false)
-            } else {
-                (partner.filter(|&p| full(p)), self.splat_paths > 0)
-            };
+            let partner = self.read_partner(i);
+            let splats = self.splat_paths > 0 && self.past_draft(i);
             let mut weight = self.pixel_weight(i);
             for (m, &v) in mean.iter_mut().zip(camera(i)) {
                 *m = f64::from(v);

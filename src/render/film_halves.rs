@@ -25,17 +25,15 @@ impl Film {
     }
 
     /// [`Self::mean`] with `halves`: each part of the pixel with its
-    /// partner's (rows on the draft alone, as [`Self::mean_with`] reads
-    /// them), plus the pixel's own splats.
+    /// partner's where their rows are at the same stage (as
+    /// [`Self::mean_with`] reads pairs), plus past the draft the pixel's
+    /// own splats.
     pub(super) fn halves_mean(&self, index: usize) -> [f64; 3] {
-        let w = self.width as usize;
-        let full = |i: usize| !self.splats() || self.row_passes[i / w] >= 2;
-        if !full(index) {
-            return self.pixel_mean(index, None, &|i| self.xyz_sum.get(i));
-        }
-        let mut mean = self.halves_camera_mean(index, &full);
-        if self.splats() && self.splat_paths > 0 {
-            for (m, s) in mean.iter_mut().zip(self.halves_splats(index, &full)) {
+        let past = self.past_draft(index);
+        let usable = |i: usize| self.past_draft(i) == past;
+        let mut mean = self.halves_camera_mean(index, &usable);
+        if self.splat_paths > 0 && past {
+            for (m, s) in mean.iter_mut().zip(self.halves_splats(index, &usable)) {
                 *m += s / self.splat_paths as f64;
             }
         }

@@ -859,8 +859,8 @@ mod tests {
         assert!(!Renderer::new(&nadir).unwrap().new_film().splats());
         // With the sun low (sunset, 2°): the air's and the ground's; high
         // (midday, 45°): the ground's alone, from the first full pass on a
-        // bounce per pixel that sees the ground (the lower half, and the
-        // table's count errs somewhat high).
+        // bounce per pixel that sees the ground (the table's count, near
+        // the lower half's 64).
         let sunset = Renderer::new(&small("sunset")).unwrap();
         assert!(sunset.plan().circle_splatting && sunset.new_film().splats());
         let midday = Renderer::new(&small("midday")).unwrap();
