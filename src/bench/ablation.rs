@@ -85,8 +85,8 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("forced_collision_depth=0", |s| {
             s.render.integrator.forced_collision_depth = 0;
         }),
-        ("forced_collision_depth=8", |s| {
-            s.render.integrator.forced_collision_depth = 8;
+        ("forced_collision_depth=1", |s| {
+            s.render.integrator.forced_collision_depth = 1;
         }),
         ("russian_roulette=false", |s| {
             s.render.integrator.russian_roulette = false;

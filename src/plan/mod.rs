@@ -16,7 +16,9 @@
 pub mod options;
 pub mod regime;
 
-pub use options::{ControlSource, IntegratorOptions, Sampler, TransmittanceEstimator};
+pub use options::{
+    ControlSource, IntegratorOptions, Sampler, TransmittanceEstimator, FORCED_COLLISION_DEPTH,
+};
 pub use regime::{Regime, RegimeDefaults, REGIMES};
 
 use crate::atmosphere::AtmosphereParams;

@@ -4,6 +4,18 @@
 //! [`super::TechniquePlan::new`] makes every choice, by the regime table
 //! ([`super::regime`]). Nothing else reads these unset.
 
+/// Default `forced_collision_depth`: delta-tracked segments after one to
+/// eight scatterings that would leave the atmosphere force their first
+/// collision into it. By day a path leaving upward (majorant optical depth
+/// ≈ 0.1 at midday, more in haze or the Martian dust) otherwise carries
+/// the orders past the second in rare large estimates, and those orders
+/// hold most of the sky's variance; forced, every path brings a small
+/// share of them and roulette bounds their length. It pays most in thick
+/// air (Mars at noon, a hazy day); below 3° the segments are estimated
+/// through next-event points, not tracked, and it changes nothing there
+/// (`BENCHMARKS.md`, forced collisions).
+pub const FORCED_COLLISION_DEPTH: u32 = 8;
+
 /// Switches for the variance-reduction techniques (each defaults to the
 /// best; the benchmark's ablation turns them off one at a time). `None`
 /// means the regime table's choice for the scene's sun
@@ -73,7 +85,8 @@ pub struct IntegratorOptions {
     /// Delta-tracked path segments that start after 1 to this many
     /// scatterings and would leave the atmosphere force their first
     /// tentative collision into the segment (weighted by its probability),
-    /// 0–64; 0 = off. Default 1, the branches of camera paths.
+    /// 0–64; 0 = off. Default [`FORCED_COLLISION_DEPTH`] (1: the
+    /// branches of camera paths only).
     pub forced_collision_depth: u32,
     /// Russian roulette after the second scattering event.
     pub russian_roulette: bool,
@@ -161,7 +174,7 @@ impl Default for IntegratorOptions {
             sky_guide_sunlit: None,
             ground_guide: None,
             shadow_samples: 0,
-            forced_collision_depth: 1,
+            forced_collision_depth: FORCED_COLLISION_DEPTH,
             russian_roulette: true,
             splitting: None,
             control_variate: None,

@@ -34,9 +34,11 @@
 //!   σ̄ and its probability.
 //!
 //! Absorption never terminates a path; it only weights it. Russian roulette
-//! ends paths without bias. On the branches of camera paths the first
-//! tentative collision is forced into the segment where the ray would
-//! otherwise leave the atmosphere ([`crate::plan::IntegratorOptions::forced_collision_depth`]):
+//! ends paths without bias. On the delta-tracked segments of the first
+//! scatterings (the camera's branches and their next few segments) the
+//! first tentative collision is forced into the segment where the ray
+//! would otherwise leave the atmosphere
+//! ([`crate::plan::IntegratorOptions::forced_collision_depth`]):
 //! an escaping path adds nothing there, so conditioning on not escaping and
 //! weighting by its probability turns a rare large contribution into a
 //! frequent small one.
