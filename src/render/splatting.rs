@@ -23,11 +23,13 @@ const GROUND_STREAM: u64 = u64::MAX - 0x96d0;
 const GROUND_WALKS_PER_WALK: u64 = 1;
 /// Ground bounces per pixel that sees the ground
 /// ([`GroundSplatter::ground_pixels`]) in a pass where the ground's
-/// skylight is splatted without the air's (by day): a bounce costs about
-/// two camera paths; at midday from 2 m, where the ground fills half the
-/// image, half a bounce per pixel of the image measured best (a quarter
-/// left the ground noisier, one gave the sky fewer passes;
-/// `BENCHMARKS.md`, ground splatting).
+/// skylight is splatted without the air's (by day): at midday a bounce
+/// with its positions costs about two thirds of a camera sample, nearly
+/// all of it the positions (their landing and transmittance; the
+/// bounce's own path a tenth of a camera sample). From 2 m, where the
+/// ground fills half the image, half a bounce per pixel of the image
+/// measured best, and the ground's noise is flat about it in the bounces
+/// and positions (`BENCHMARKS.md`, ground splatting).
 const GROUND_WALKS_PER_GROUND_PIXEL: f64 = 1.0;
 /// Points splatted per pixel in each pass after the first ([`circles`];
 /// each with two directions and paths): with more, the camera's own
