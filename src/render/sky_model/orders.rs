@@ -13,11 +13,12 @@ use rayon::prelude::*;
 
 use super::optics::{
     add_product, add_scaled, altitude_of, node_groups, node_wavelength, split, view_azimuth_of,
-    view_cosine_index, view_cosine_of, view_zenith_cosine_of, zenith_cosine_of, MsTable, Optics,
-    Phases, Quadrature, SkyIrradiance, Sources, Spectrum, GROUND_DIRECTIONS_HIGHER, GROUPS,
-    MS_ALTITUDES, MS_DIRECTIONS, MS_DIRECTIONS_AT_CORE, MS_DIRECTIONS_AT_SUN,
-    MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES,
-    SUN_CAP_COSINE, SUN_CORE_CAP_COSINE, SUN_INNER_CAP_COSINE, TABLE_STEPS, TABLE_STEPS_HIGHER,
+    view_cosine_index, view_cosine_of, view_zenith_cosine_of, zenith_cosine_of,
+    zenith_cosine_of_node, MsTable, Optics, Phases, Quadrature, SkyIrradiance, Sources, Spectrum,
+    E_ZENITHS, GROUND_DIRECTIONS_HIGHER, GROUPS, MS_ALTITUDES, MS_DIRECTIONS,
+    MS_DIRECTIONS_AT_CORE, MS_DIRECTIONS_AT_SUN, MS_DIRECTIONS_NEAR_SUN, MS_VIEW_ANGLES,
+    MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS, NODES, SUN_CAP_COSINE, SUN_CORE_CAP_COSINE,
+    SUN_INNER_CAP_COSINE, TABLE_STEPS, TABLE_STEPS_HIGHER,
 };
 use super::stored;
 use crate::render::lanes::LaneTable;
@@ -316,13 +317,14 @@ impl SkyIrradiance {
         } else {
             TABLE_STEPS
         };
-        let values = (0..MS_ZENITHS)
+        let values = (0..E_ZENITHS)
             .into_par_iter()
             .map(|k| {
                 if cancelled() {
                     return None;
                 }
-                let (sun, cell_optics) = optics.with_sun_at(zenith_cosine_of(k as f64));
+                let (sun, cell_optics) =
+                    optics.with_sun_at(zenith_cosine_of_node(k as f64, E_ZENITHS));
                 let origin = DVec3::new(0.0, 0.0, medium.planet_radius_m + 1.0);
                 let mut e = [0.0; NODES];
                 for (dir, weight, cells) in quadrature.points(sun).filter(|p| p.0.z > 0.0) {

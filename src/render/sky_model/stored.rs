@@ -183,13 +183,13 @@ fn parse(
     (planet_radius_m, top_m): (f64, f64),
 ) -> Option<(MsTable, SkyIrradiance)> {
     use super::optics::{
-        MS_ALTITUDES, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS,
+        E_ZENITHS, MS_ALTITUDES, MS_VIEW_ANGLES, MS_VIEW_AZIMUTHS, MS_VIEW_ZENITHS, MS_ZENITHS,
     };
     let cells = MS_ALTITUDES * MS_ZENITHS;
     let counts = [
         cells * MS_VIEW_ANGLES,
         cells * MS_VIEW_ZENITHS * MS_VIEW_AZIMUTHS,
-        MS_ZENITHS,
+        E_ZENITHS,
     ];
     let (wide, narrow) = (
         2 * NODES * counts[0] + NODES * counts[2],
