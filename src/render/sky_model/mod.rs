@@ -701,7 +701,9 @@ mod tests {
     /// With the sun below the horizon the ground is lit by the sky alone,
     /// so the model's ground below an observer on it must be the albedo
     /// over π times the cosine-weighted integral of the model's own sky
-    /// (the path tracer's is, to a thousandth: `BENCHMARKS.md`). Between
+    /// (the path tracer's twilight is, to a thousandth: its ground reads
+    /// 0.3003/π of its sky's integral over two 150 s renders, for an
+    /// albedo of 0.3; `BENCHMARKS.md`, the preview). Between
     /// [`MS_ZENITHS`]' nodes 2° apart (−5.6°, −3.6°) the irradiance,
     /// interpolated geometrically, left the ground 2.6 % dark against it
     /// at −1° and 2.8 % at −4°; at [`E_ZENITHS`] nodes it reads 0.99–1.01
