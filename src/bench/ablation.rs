@@ -112,6 +112,9 @@ pub fn ablation_variants() -> Vec<Variant> {
         ("ground_splatting=false", |s| {
             s.render.integrator.ground_splatting = Some(false);
         }),
+        ("ground_pool=false", |s| {
+            s.render.integrator.ground_pool = Some(false);
+        }),
         ("ground_control=false", |s| {
             s.render.integrator.ground_control = Some(false);
         }),

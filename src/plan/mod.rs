@@ -302,6 +302,10 @@ pub struct TechniquePlan {
     /// `circle_splatting` one bounce per path splatted in the air, without
     /// it bounces of their own (`render::splatting`).
     pub ground_splatting: bool,
+    /// Each splatted ground bounce with its twin at the observer's foot as
+    /// its control variate, the twin's mean from a pool of bounces per
+    /// pass (only with `ground_splatting`).
+    pub ground_pool: bool,
     /// The model's skylight as a control variate at ground bounces (never
     /// with a limit on the orders, which it would mix, nor with the
     /// model's own cells as the control, which hold the ground's).
@@ -339,6 +343,7 @@ impl TechniquePlan {
             .circle_splatting
             .unwrap_or(row.circle_splatting.applies(conditions.observer_low))
             && can_splat;
+        let ground_splatting = can_splat && options.ground_splatting.unwrap_or(true);
         let camera_samples = options.camera_samples.unwrap_or(if circle_splatting {
             SPLAT_CAMERA_SAMPLES
         } else {
@@ -383,7 +388,8 @@ impl TechniquePlan {
             control_variate: control_variate && options.max_scattering_order.is_none(),
             control_source: options.control_source.unwrap_or_default(),
             circle_splatting,
-            ground_splatting: can_splat && options.ground_splatting.unwrap_or(true),
+            ground_splatting,
+            ground_pool: ground_splatting && options.ground_pool.unwrap_or(true),
             ground_control: options
                 .ground_control
                 .unwrap_or(conditions.observer_in_air && conditions.haze_fits_model)

@@ -123,6 +123,15 @@ pub struct IntegratorOptions {
     /// their own. Needs what `circle_splatting` needs. Unset: on wherever
     /// the observer is inside the atmosphere and above the ground.
     pub ground_splatting: Option<bool>,
+    /// Where the ground's skylight is splatted, each bounce's light taken
+    /// with a twin as its control variate: the same bounce (the same
+    /// random numbers and wavelengths) at the observer's foot, whose mean
+    /// a pool of bounces of its own estimates once per pass for every
+    /// circle ([`crate::render::ground_circles`]). The reflected skylight
+    /// changes little over the visible ground, so a bounce and its twin
+    /// nearly cancel and the pool's estimate replaces each bounce's noise.
+    /// Unset: on wherever the ground's skylight is splatted.
+    pub ground_pool: Option<bool>,
     /// The approximate sky model's light on the ground as a control
     /// variate at every ground bounce: the bounce adds the exact cosine
     /// integral of the model's light on a grid of directions, and its path
@@ -181,6 +190,7 @@ impl Default for IntegratorOptions {
             control_source: None,
             circle_splatting: None,
             ground_splatting: None,
+            ground_pool: None,
             ground_control: None,
             splat_transmittance_table: true,
             sun_transmittance_table: true,

@@ -41,6 +41,13 @@
 //!   Cauchy density as narrow as the circle passes the observer's foot
 //!   (the equirect map's 1/cos el), and uniform.
 //!
+//! * **The pool** (`ground_pool`): each bounce less its twin at the
+//!   observer's foot, plus one estimate of the foot's light per pass
+//!   shared by every position ([`GroundSplatter::walk`]). ρ depends on x
+//!   only through the sun's zenith angle there, which over the visible
+//!   ground changes by less than the horizon's dip, so the pair nearly
+//!   cancels and each bounce's noise gives way to the pool's.
+//!
 //! The ground's direct sunlight stays with the camera paths (one
 //! next-event estimate, little variance). Splats into pixels whose density
 //! J varies too much within them ([`Camera::pixel_density_bounded`]) are
@@ -75,6 +82,10 @@ pub const MAX_GROUND_SPLATS: usize = super::circle_geometry::MAX_SPLATS_PER_WALK
 /// point and 3/8 from the narrow one about the foot's (the rest uniform).
 const CAUCHY_GROUND_EIGHTHS: usize = 3;
 const NARROW_GROUND_EIGHTHS: usize = 3;
+/// With the pool, the distance from the foot (m) at and past which a
+/// bounce and its twin are always traced; nearer, with probability
+/// √(u / it), at least the caller's share.
+pub const PAIR_FULL_DISTANCE_M: f64 = 4000.0;
 /// Share of the angles drawn uniformly over the visible ground.
 const UNIFORM_SHARE: f64 = 0.05;
 /// Share of the table's mass from the positions' integral alone (the rest
@@ -171,6 +182,12 @@ pub struct GroundSplatter {
     cdf: Vec<f64>,
     /// The look-ups of the rays from the observer.
     observer: ObserverRays,
+    /// The lanes at [`TABLE_WAVELENGTH_NM`]: the pool's share of a
+    /// position is weighted by the table's transmittance there.
+    table_lanes: SpectralLanes,
+    /// The unit normal at the observer's foot, where a bounce's twin and
+    /// the pool's bounces leave ([`Self::walk`]).
+    foot_normal: DVec3,
     /// Positions per bounce: half the air's per point
     /// ([`super::circle_geometry::splats_per_walk`]).
     splats: usize,
@@ -218,6 +235,7 @@ impl GroundSplatter {
             .map(|u| -u)
             .chain(side.iter().skip(1).copied())
             .collect();
+        let foot_normal = axis.point(1.0, axis.theta0, 0.0);
         let mut splatter = Self {
             axis,
             height_m,
@@ -226,10 +244,17 @@ impl GroundSplatter {
             bins: Vec::new(),
             cdf: Vec::new(),
             observer: ObserverRays::new(medium, observer_m),
+            table_lanes: SpectralLanes::new(
+                Lanes::from([TABLE_WAVELENGTH_NM; LANES]),
+                1,
+                medium,
+                true,
+            ),
+            foot_normal,
             splats: super::circle_geometry::splats_per_walk(camera) / 2,
             ground_pixels: 0.0,
         };
-        let lanes = SpectralLanes::new(Lanes::from([TABLE_WAVELENGTH_NM; LANES]), 1, medium, true);
+        let lanes = splatter.table_lanes.clone();
         // Per bin: the positions' integral (and with the guide's light) at
         // the most of its edges and centre, times its width. At the most:
         // a bin that the image's edge cuts has a visible edge, and its mass
@@ -442,11 +467,47 @@ impl GroundSplatter {
         self.ground_pixels
     }
 
+    /// The skylight reflected at the observer's foot, by one bounce: what a
+    /// bounce's twin estimates, and the pool's bounces
+    /// ([`Self::walk`]).
+    pub fn foot_light(
+        &self,
+        integrator: &Integrator<'_>,
+        lanes: &SpectralLanes,
+        rng: &mut Rng,
+    ) -> Lanes {
+        integrator.ground_light(self.foot_normal, lanes, rng)
+    }
+
     /// One bounce and its splats (at most [`Self::splats_per_bounce`])
     /// into `out`, each weighted by `scale` (the share of the walk's unit
     /// the bounce is); `wavelength_weights[j]` turns lane j's radiance into
     /// XYZ as in [`super::circles::CircleSplatter::walk`]. Returns the
     /// splats discarded as not finite.
+    ///
+    /// With `pool`, the pass's estimate P̂ (XYZ) of the skylight reflected
+    /// at the foot (the mean of independent [`Self::foot_light`] bounces,
+    /// each through `wavelength_weights` of its own lanes), each position's
+    /// XYZ is a control-variate estimate,
+    ///
+    /// w [Σ_j x̄_j (T_j ρ̂_j − t ρ̂⁰_j) + t P̂],
+    ///
+    /// ρ̂ the bounce, ρ̂⁰ its twin (the same bounce, random numbers and
+    /// lanes at the foot), T_j the position's transmittance, t its table's
+    /// at 550 nm and w its weight. t is fixed by the
+    /// position alone and P̂ is independent of the walk, so E[t P̂] =
+    /// E[t Σ_j x̄_j ρ̂⁰_j] and the mean is the plain estimate's. By the
+    /// scene's symmetry about the Earth's centre ρ(x) depends on x only
+    /// through the sun's zenith angle there, which over the visible ground
+    /// changes by less than the horizon's dip: a bounce and its twin take
+    /// nearly the same path and nearly cancel (their difference's variance
+    /// is 10⁻³–10⁻⁶ of a bounce's 100 m from the foot, a few per cent at
+    /// 1 km in twilight), and the positions share P̂, whose noise is the
+    /// pool's. The pair is traced with probability q, at least
+    /// `pair_share` and more away from the foot ([`PAIR_FULL_DISTANCE_M`]),
+    /// and then weighted 1/q; left out, a position keeps t P̂ alone. The
+    /// spectral lanes hold the bounce's own estimate T_j ρ̂_j (P̂ has no
+    /// lanes): unbiased only with `pair_share` 1, as a spectral film asks.
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &self,
@@ -455,6 +516,8 @@ impl GroundSplatter {
         lanes: &SpectralLanes,
         wavelength_weights: &[[f64; 3]; LANES],
         scale: f64,
+        pool: Option<&[f64; 3]>,
+        pair_share: f64,
         rng: &mut Rng,
         out: &mut Vec<Splat>,
     ) -> u64 {
@@ -462,29 +525,70 @@ impl GroundSplatter {
             return 0;
         };
         let normal = self.axis.point(1.0, arc.theta, 0.0);
-        let reflected = integrator.ground_light(normal, lanes, rng);
-        if reflected[..lanes.active].iter().all(|&l| l == 0.0) {
-            return 0;
-        }
+        // The bounce ρ̂ and, with the pool, its twin ρ̂⁰, both over q; `None`
+        // where roulette left them out (q: below).
+        let (pair, twin) = if pool.is_some() {
+            // The pair by Russian roulette, kept with probability q and then
+            // weighted 1/q: its difference is small near the foot, and grows
+            // with the distance from it.
+            let u_m = (arc.theta - self.axis.theta0).abs() * self.axis.ground_m;
+            let q = (u_m / PAIR_FULL_DISTANCE_M)
+                .sqrt()
+                .clamp(pair_share.min(1.0), 1.0);
+            if rng.uniform() < q {
+                let mut twin_rng = rng.clone();
+                let reflected = integrator.ground_light(normal, lanes, rng) / q;
+                let twin = self.foot_light(integrator, lanes, &mut twin_rng) / q;
+                (Some(reflected), Some(twin))
+            } else {
+                (None, None)
+            }
+        } else {
+            let reflected = integrator.ground_light(normal, lanes, rng);
+            if reflected[..lanes.active].iter().all(|&l| l == 0.0) {
+                return 0;
+            }
+            (Some(reflected), None)
+        };
         let mut discarded = 0;
         for landing in landings.into_iter().flatten() {
             let t_short = landing.t_m * (1.0 - SHORT_OF_GROUND);
-            let Some(tr) =
+            // The position's transmittance, for the bounce's estimate
+            // (`None`: hidden; the plain estimate then leaves the position
+            // out, the controlled one keeps its twin's and pool's terms,
+            // whose means cancel).
+            let tr = pair.and_then(|_| {
                 self.observer
                     .transmittance(integrator, landing.dir, t_short, lanes, rng)
-            else {
+            });
+            if pool.is_none() && tr.is_none() {
                 continue;
-            };
+            }
             let weight = scale * landing.weight / theta_density;
             let mut xyz = [0.0; 3];
             let mut spectral = SplatLanes::default();
-            for j in 0..lanes.active {
-                let l = tr[j] * reflected[j] * weight;
-                for (value, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
-                    *value += l * bar;
+            // The pool's share: the table's transmittance, fixed by the
+            // position (0 where the table finds the point hidden).
+            let t = pool.map_or(0.0, |_| {
+                self.observer
+                    .table_transmittance(landing.dir, t_short, &self.table_lanes)
+                    .map_or(0.0, |tr| tr[0])
+            });
+            if let Some(reflected) = pair {
+                for j in 0..lanes.active {
+                    let l = tr.map_or(0.0, |tr| tr[j] * reflected[j] * weight);
+                    let controlled = twin.map_or(l, |twin: Lanes| l - t * twin[j] * weight);
+                    for (value, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
+                        *value += controlled * bar;
+                    }
+                    spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j] as f32;
+                    spectral.values[j] = l as f32;
                 }
-                spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j] as f32;
-                spectral.values[j] = l as f32;
+            }
+            if let Some(pool) = pool {
+                for (value, p) in xyz.iter_mut().zip(pool) {
+                    *value += t * weight * p;
+                }
             }
             if xyz.iter().all(|v| v.is_finite()) {
                 out.push(Splat {

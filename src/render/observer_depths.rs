@@ -238,6 +238,18 @@ impl ObserverRays {
         }
     }
 
+    /// The observer's table's transmittance T̃ per lane along the unit
+    /// direction `dir` to distance `t_m`, uncorrected (`None` where the
+    /// ground hides the point): a deterministic function of the ray.
+    pub fn table_transmittance(
+        &self,
+        dir: DVec3,
+        t_m: f64,
+        lanes: &SpectralLanes,
+    ) -> Option<Lanes> {
+        self.depths.transmittance(dir, t_m, lanes)
+    }
+
     /// The column table's look-ups at the observer.
     pub fn start(&self) -> &FixedStart {
         &self.start
