@@ -302,9 +302,10 @@ pub struct TechniquePlan {
     /// `circle_splatting` one bounce per path splatted in the air, without
     /// it bounces of their own (`render::splatting`).
     pub ground_splatting: bool,
-    /// Each splatted ground bounce with its twin at the observer's foot as
-    /// its control variate, the twin's mean from a pool of bounces per
-    /// pass (only with `ground_splatting`).
+    /// Each splatted ground bounce less its twin at the observer's foot,
+    /// the camera's samples adding the twin's mean from a pool of bounces
+    /// per pass (only with `ground_splatting`; the renderer turns it off
+    /// for a spectral image).
     pub ground_pool: bool,
     /// The model's skylight as a control variate at ground bounces (never
     /// with a limit on the orders, which it would mix, nor with the

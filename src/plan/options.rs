@@ -123,14 +123,17 @@ pub struct IntegratorOptions {
     /// their own. Needs what `circle_splatting` needs. Unset: on wherever
     /// the observer is inside the atmosphere and above the ground.
     pub ground_splatting: Option<bool>,
-    /// Where the ground's skylight is splatted, each bounce's light taken
-    /// with a twin as its control variate: the same bounce (the same
-    /// random numbers and wavelengths) at the observer's foot, whose mean
-    /// a pool of bounces of its own estimates once per pass for every
-    /// circle ([`crate::render::ground_circles`]). The reflected skylight
-    /// changes little over the visible ground, so a bounce and its twin
-    /// nearly cancel and the pool's estimate replaces each bounce's noise.
-    /// Unset: on wherever the ground's skylight is splatted.
+    /// Where the ground's skylight is splatted, each bounce less its twin:
+    /// the same bounce (the same random numbers and wavelengths) from the
+    /// observer's foot. The twin's mean, the foot's reflected skylight, is
+    /// estimated once per pass by a pool of bounces of its own, and the
+    /// camera's samples add it where their rays meet the ground
+    /// ([`crate::render::ground_circles`]). The reflected skylight changes
+    /// little over the ground seen from near it, so a bounce and its twin
+    /// nearly cancel (most pairs are left out by Russian roulette), and
+    /// the pool's noise, shared by every pixel, replaces the bounces'.
+    /// Not with a spectral image (the pool's light is XYZ). Unset: on
+    /// wherever the ground's skylight is splatted.
     pub ground_pool: Option<bool>,
     /// The approximate sky model's light on the ground as a control
     /// variate at every ground bounce: the bounce adds the exact cosine

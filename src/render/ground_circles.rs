@@ -42,11 +42,14 @@
 //!   (the equirect map's 1/cos el), and uniform.
 //!
 //! * **The pool** (`ground_pool`): each bounce less its twin at the
-//!   observer's foot, plus one estimate of the foot's light per pass
-//!   shared by every position ([`GroundSplatter::walk`]). ρ depends on x
-//!   only through the sun's zenith angle there, which over the visible
-//!   ground changes by less than the horizon's dip, so the pair nearly
-//!   cancels and each bounce's noise gives way to the pool's.
+//!   observer's foot, and the camera's samples add one estimate of the
+//!   foot's light per pass where they meet the ground
+//!   ([`GroundSplatter::walk`], [`GroundPool`]). ρ depends on x only
+//!   through the sun's zenith angle there, which over the ground seen
+//!   from near it changes by less than the horizon's dip, so the pair
+//!   nearly cancels (most pairs are left out by roulette) and the ground's
+//!   light takes the pool's noise, shared by every pixel, in place of the
+//!   bounces' and of where their positions land.
 //!
 //! The ground's direct sunlight stays with the camera paths (one
 //! next-event estimate, little variance). Splats into pixels whose density
@@ -86,6 +89,11 @@ const NARROW_GROUND_EIGHTHS: usize = 3;
 /// bounce and its twin are always traced; nearer, with probability
 /// √(u / it), at least the caller's share.
 pub const PAIR_FULL_DISTANCE_M: f64 = 4000.0;
+/// The pool's weight is whole within this distance (m) of the foot toward
+/// the sun ([`GroundSplatter::pool_weight`]).
+pub const POOL_FULL_M: f64 = 20_000.0;
+/// ... and 0 from this distance (m) on.
+pub const POOL_NONE_M: f64 = 100_000.0;
 /// Share of the angles drawn uniformly over the visible ground.
 const UNIFORM_SHARE: f64 = 0.05;
 /// Share of the table's mass from the positions' integral alone (the rest
@@ -165,6 +173,16 @@ fn kind_counts(splats: usize) -> [usize; 3] {
     let cauchy = splats * CAUCHY_GROUND_EIGHTHS / 8;
     let narrow = splats * NARROW_GROUND_EIGHTHS / 8;
     [cauchy, narrow, splats - cauchy - narrow]
+}
+
+/// The probability that a bounce and its twin are traced, at `u_m` from
+/// the foot toward the sun: their difference is small near the foot
+/// and grows with the distance, √(|u| / [`PAIR_FULL_DISTANCE_M`]),
+/// at least `share`.
+fn pair_probability(u_m: f64, share: f64) -> f64 {
+    (u_m.abs() / PAIR_FULL_DISTANCE_M)
+        .sqrt()
+        .clamp(share.min(1.0), 1.0)
 }
 
 /// Splats the skylight the ground reflects, for one scene and camera.
@@ -432,16 +450,24 @@ impl GroundSplatter {
     /// A circle drawn for one bounce: its arc, the angle's density (per
     /// radian) and where its positions land in `camera` — `None` where
     /// none does (the bounce would serve no pixel: no path is traced).
+    /// With `pair_share` (the pool's), the bounce is kept by Russian
+    /// roulette with probability q ([`Self::pair_probability`]), returned
+    /// too (1 without), and `None` where it is not.
     #[allow(clippy::type_complexity)]
     fn circle(
         &self,
         camera: &Camera,
+        pair_share: Option<f64>,
         rng: &mut Rng,
-    ) -> Option<(GroundArc, f64, [Option<Landing>; MAX_GROUND_SPLATS])> {
+    ) -> Option<(GroundArc, f64, f64, [Option<Landing>; MAX_GROUND_SPLATS])> {
         let (choice, v, w) = (rng.uniform(), rng.uniform(), rng.uniform());
         let u = self.sample_u(choice, v, w);
         let u_density = self.u_density(u);
         let arc = self.arc(u).filter(|_| u_density > 0.0)?;
+        let q = pair_share.map_or(1.0, |share| pair_probability(u, share));
+        if pair_share.is_some() && rng.uniform() >= q {
+            return None;
+        }
         let offset = rng.uniform();
         let landings: [Option<Landing>; MAX_GROUND_SPLATS] = std::array::from_fn(|k| {
             (k < self.splats)
@@ -453,7 +479,32 @@ impl GroundSplatter {
         landings
             .iter()
             .any(Option::is_some)
-            .then_some((arc, theta_density, landings))
+            .then_some((arc, theta_density, q, landings))
+    }
+
+    /// The weight c(x) of the pool's light at the ground point x at
+    /// distance `t_m` along the unit direction `dir` from the observer: the
+    /// observer's table's transmittance to it at 550 nm times κ(u), which
+    /// is 1 within [`POOL_FULL_M`] of the foot toward the sun and falls to
+    /// 0 at [`POOL_NONE_M`], where a bounce and its twin are no longer
+    /// alike ([`Self::walk`]). A function of x alone: the camera's samples
+    /// add c P̂ where their rays meet the ground, and each splat takes c ρ̂⁰
+    /// out.
+    pub fn pool_weight(&self, dir: DVec3, t_m: f64) -> f64 {
+        let axis = &self.axis;
+        let x = axis.observer_m + dir * t_m;
+        let theta = x.cross(axis.sun).length().atan2(x.dot(axis.sun));
+        let u_m = ((theta - axis.theta0) * axis.ground_m).abs();
+        let kappa = ((POOL_NONE_M - u_m) / (POOL_NONE_M - POOL_FULL_M)).clamp(0.0, 1.0);
+        if kappa == 0.0 {
+            return 0.0;
+        }
+        let t_short = t_m * (1.0 - SHORT_OF_GROUND);
+        kappa
+            * self
+                .observer
+                .table_transmittance(dir, t_short, &self.table_lanes)
+                .map_or(0.0, |tr| tr[0])
     }
 
     /// Positions per bounce: splats a bounce makes at most.
@@ -485,29 +536,25 @@ impl GroundSplatter {
     /// XYZ as in [`super::circles::CircleSplatter::walk`]. Returns the
     /// splats discarded as not finite.
     ///
-    /// With `pool`, the pass's estimate P̂ (XYZ) of the skylight reflected
-    /// at the foot (the mean of independent [`Self::foot_light`] bounces,
-    /// each through `wavelength_weights` of its own lanes), each position's
-    /// XYZ is a control-variate estimate,
+    /// With the pool (`pair_share`), each position's XYZ is the bounce
+    /// less its twin,
     ///
-    /// w [Σ_j x̄_j (T_j ρ̂_j − t ρ̂⁰_j) + t P̂],
+    /// w Σ_j x̄_j (T_j ρ̂_j − c ρ̂⁰_j) / q,
     ///
     /// ρ̂ the bounce, ρ̂⁰ its twin (the same bounce, random numbers and
-    /// lanes at the foot), T_j the position's transmittance, t its table's
-    /// at 550 nm and w its weight. t is fixed by the
-    /// position alone and P̂ is independent of the walk, so E[t P̂] =
-    /// E[t Σ_j x̄_j ρ̂⁰_j] and the mean is the plain estimate's. By the
+    /// lanes from the foot), T_j the position's transmittance, c its
+    /// [`Self::pool_weight`] and w its weight, the pair kept with
+    /// probability q. The camera's samples add c P̂ where they meet the
+    /// ground, P̂ the pass's pool (independent bounces from the foot): with
+    /// E[P̂] = E[ρ̂⁰], the sum's mean is the plain estimate's. By the
     /// scene's symmetry about the Earth's centre ρ(x) depends on x only
-    /// through the sun's zenith angle there, which over the visible ground
-    /// changes by less than the horizon's dip: a bounce and its twin take
-    /// nearly the same path and nearly cancel (their difference's variance
-    /// is 10⁻³–10⁻⁶ of a bounce's 100 m from the foot, a few per cent at
-    /// 1 km in twilight), and the positions share P̂, whose noise is the
-    /// pool's. The pair is traced with probability q, at least
-    /// `pair_share` and more away from the foot ([`PAIR_FULL_DISTANCE_M`]),
-    /// and then weighted 1/q; left out, a position keeps t P̂ alone. The
-    /// spectral lanes hold the bounce's own estimate T_j ρ̂_j (P̂ has no
-    /// lanes): unbiased only with `pair_share` 1, as a spectral film asks.
+    /// through the sun's zenith angle there, which over the ground seen
+    /// from near it changes by less than the horizon's dip: a bounce and
+    /// its twin take nearly the same path (their difference's variance is
+    /// 10⁻³–10⁻⁶ of a bounce's 100 m from the foot, a few per cent at 1 km
+    /// in twilight), so most pairs are left out, and the ground's light
+    /// takes the pool's noise, shared by every pixel, in place of each
+    /// bounce's.
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &self,
@@ -516,79 +563,45 @@ impl GroundSplatter {
         lanes: &SpectralLanes,
         wavelength_weights: &[[f64; 3]; LANES],
         scale: f64,
-        pool: Option<&[f64; 3]>,
-        pair_share: f64,
+        pair_share: Option<f64>,
         rng: &mut Rng,
         out: &mut Vec<Splat>,
     ) -> u64 {
-        let Some((arc, theta_density, landings)) = self.circle(camera, rng) else {
+        let Some((arc, theta_density, q, landings)) = self.circle(camera, pair_share, rng) else {
             return 0;
         };
         let normal = self.axis.point(1.0, arc.theta, 0.0);
-        // The bounce ρ̂ and, with the pool, its twin ρ̂⁰, both over q; `None`
-        // where roulette left them out (q: below).
-        let (pair, twin) = if pool.is_some() {
-            // The pair by Russian roulette, kept with probability q and then
-            // weighted 1/q: its difference is small near the foot, and grows
-            // with the distance from it.
-            let u_m = (arc.theta - self.axis.theta0).abs() * self.axis.ground_m;
-            let q = (u_m / PAIR_FULL_DISTANCE_M)
-                .sqrt()
-                .clamp(pair_share.min(1.0), 1.0);
-            if rng.uniform() < q {
-                let mut twin_rng = rng.clone();
-                let reflected = integrator.ground_light(normal, lanes, rng) / q;
-                let twin = self.foot_light(integrator, lanes, &mut twin_rng) / q;
-                (Some(reflected), Some(twin))
-            } else {
-                (None, None)
-            }
-        } else {
-            let reflected = integrator.ground_light(normal, lanes, rng);
-            if reflected[..lanes.active].iter().all(|&l| l == 0.0) {
-                return 0;
-            }
-            (Some(reflected), None)
-        };
+        let mut twin_rng = pair_share.map(|_| rng.clone());
+        let reflected = integrator.ground_light(normal, lanes, rng) / q;
+        let twin = twin_rng
+            .as_mut()
+            .map(|twin_rng| self.foot_light(integrator, lanes, twin_rng) / q);
+        if twin.is_none() && reflected[..lanes.active].iter().all(|&l| l == 0.0) {
+            return 0;
+        }
         let mut discarded = 0;
         for landing in landings.into_iter().flatten() {
             let t_short = landing.t_m * (1.0 - SHORT_OF_GROUND);
-            // The position's transmittance, for the bounce's estimate
-            // (`None`: hidden; the plain estimate then leaves the position
-            // out, the controlled one keeps its twin's and pool's terms,
-            // whose means cancel).
-            let tr = pair.and_then(|_| {
-                self.observer
-                    .transmittance(integrator, landing.dir, t_short, lanes, rng)
-            });
-            if pool.is_none() && tr.is_none() {
+            // `None`: hidden. The plain estimate then leaves the position
+            // out; the twin's term stays, as the camera's c P̂ does.
+            let tr = self
+                .observer
+                .transmittance(integrator, landing.dir, t_short, lanes, rng);
+            if twin.is_none() && tr.is_none() {
                 continue;
             }
             let weight = scale * landing.weight / theta_density;
+            let c = twin.map_or(0.0, |_| self.pool_weight(landing.dir, landing.t_m));
             let mut xyz = [0.0; 3];
             let mut spectral = SplatLanes::default();
-            // The pool's share: the table's transmittance, fixed by the
-            // position (0 where the table finds the point hidden).
-            let t = pool.map_or(0.0, |_| {
-                self.observer
-                    .table_transmittance(landing.dir, t_short, &self.table_lanes)
-                    .map_or(0.0, |tr| tr[0])
-            });
-            if let Some(reflected) = pair {
-                for j in 0..lanes.active {
-                    let l = tr.map_or(0.0, |tr| tr[j] * reflected[j] * weight);
-                    let controlled = twin.map_or(l, |twin: Lanes| l - t * twin[j] * weight);
-                    for (value, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
-                        *value += controlled * bar;
-                    }
-                    spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j] as f32;
-                    spectral.values[j] = l as f32;
+            for j in 0..lanes.active {
+                let l = tr.map_or(0.0, |tr| tr[j] * reflected[j] * weight);
+                let controlled = twin.map_or(l, |twin| l - c * twin[j] * weight);
+                for (value, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
+                    *value += controlled * bar;
                 }
-            }
-            if let Some(pool) = pool {
-                for (value, p) in xyz.iter_mut().zip(pool) {
-                    *value += t * weight * p;
-                }
+                spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j] as f32;
+                spectral.values[j] = l as f32;
             }
             if xyz.iter().all(|v| v.is_finite()) {
                 out.push(Splat {
@@ -602,6 +615,43 @@ impl GroundSplatter {
             }
         }
         discarded
+    }
+}
+
+/// A pass's pool: its estimate P̂ (XYZ) of the skylight reflected at the
+/// observer's foot, which a camera sample adds where its ray meets the
+/// ground, weighted by [`GroundSplatter::pool_weight`] there.
+pub struct GroundPool<'a> {
+    splatter: &'a GroundSplatter,
+    medium: &'a Medium,
+    xyz: [f64; 3],
+}
+
+impl<'a> GroundPool<'a> {
+    /// The pool P̂ = `xyz` of `splatter`'s scene in `medium`.
+    pub fn new(splatter: &'a GroundSplatter, medium: &'a Medium, xyz: [f64; 3]) -> Self {
+        Self {
+            splatter,
+            medium,
+            xyz,
+        }
+    }
+
+    /// Adds the pool's light to a camera sample's `xyz` (Y in cd m⁻²)
+    /// along the unit `dir` from the observer, where the ray meets the
+    /// ground.
+    pub fn add_to(&self, xyz: &mut [f64; 3], dir: DVec3) {
+        let Some(span) = self
+            .medium
+            .span(self.splatter.axis.observer_m, dir)
+            .filter(|s| s.hits_ground)
+        else {
+            return;
+        };
+        let c = self.splatter.pool_weight(dir, span.t_exit);
+        for (value, p) in xyz.iter_mut().zip(self.xyz) {
+            *value += c * p;
+        }
     }
 }
 
@@ -656,7 +706,8 @@ mod tests {
         let mut walk_sums = vec![0.0; pixels];
         for walk in 0..walks {
             let mut rng = Rng::new(7, walk);
-            let Some((_, theta_density, landings)) = splatter.circle(camera, &mut rng) else {
+            let Some((_, theta_density, _, landings)) = splatter.circle(camera, None, &mut rng)
+            else {
                 continue;
             };
             let mut touched = Vec::new();

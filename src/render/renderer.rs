@@ -21,6 +21,7 @@ pub fn solar_source(scene: &Scene) -> SolarSource {
 
 use super::camera::{direction_from_az_el, Camera, HalfMirror, Mirror, MirrorAxis};
 use super::film::Film;
+use super::ground_circles::GroundPool;
 use super::integrator::Integrator;
 use super::lanes::{LaneTable, SolarSource};
 use super::medium::{Lanes, Medium, SpectralLanes, LANES};
@@ -309,22 +310,24 @@ impl Renderer {
         sample: u64,
     ) -> Option<[f64; 3]> {
         let part = self.halves.map(|h| h.part(sample));
-        self.sample_pixel_lanes(integrator, x, y, sample, false, part)
+        self.sample_pixel_lanes(integrator, (x, y), sample, false, part, None)
             .map(|(xyz, ..)| xyz)
     }
 
     /// [`Self::sample_pixel`] with the sample's wavelength lanes, for the
     /// spectral layer ([`film_spectral`]), and what it gives the `sky`,
     /// `sun` and `ground` layers ([`film_layers`]; whether its ray meets
-    /// the ground only where `layers`).
+    /// the ground only where `layers`). With the pass's `pool` (where the
+    /// ground's splats serve the pixel), a ray that meets the ground adds
+    /// the pool's light there ([`GroundPool`]).
     pub(super) fn sample_pixel_lanes(
         &self,
         integrator: &Integrator<'_>,
-        x: u32,
-        y: u32,
+        (x, y): (u32, u32),
         sample: u64,
         layers: bool,
         part: Option<(bool, u64)>,
+        pool: Option<&GroundPool<'_>>,
     ) -> Option<([f64; 3], SampleLanes, SampleSplit)> {
         let width = self.scene.render.width;
         let pixel = u64::from(y) * u64::from(width) + u64::from(x);
@@ -415,6 +418,9 @@ impl Renderer {
             spectral.wavelengths_nm[j] = lanes.wavelengths_nm[j];
             spectral.values[j] = radiance[j] / (pdfs[j] * n as f64);
         }
+        if let Some(pool) = pool {
+            pool.add_to(&mut xyz, dir);
+        }
         let signed = integrator.signed_estimates();
         xyz.iter()
             .all(|v| v.is_finite() && (signed || *v >= 0.0))
@@ -461,9 +467,14 @@ impl Renderer {
             self.integrator(pass)
                 .with_splatting(self.plan.circle_splatting, self.ground_splatter().is_some())
         });
+        // The pass's pool, whose light the camera's samples add.
+        let pool = splatting
+            .as_ref()
+            .and_then(|splatting| self.ground_pool(splatting, pass));
         let (mut splat_paths, mut splat_discarded) = (0, 0);
         if let Some(splatting) = &splatting {
-            (splat_paths, splat_discarded) = self.splat_pass(film, pass, splatting, cancelled);
+            (splat_paths, splat_discarded) =
+                self.splat_pass(film, pass, splatting, pool.is_some(), cancelled);
         }
         let width = film.width as usize;
         let discarded = AtomicU64::new(splat_discarded);
@@ -590,9 +601,11 @@ impl Renderer {
                         (false, true) => (u64::from(pass) * per_pass, 1),
                         (false, false) => (u64::from(pass), 1),
                     };
-                    let integrator = match &splatting {
-                        Some(s) if self.camera.pixel_density_bounded(x as u32, y as u32) => s,
-                        _ => &integrator,
+                    let (integrator, pool) = match &splatting {
+                        Some(s) if self.camera.pixel_density_bounded(x as u32, y as u32) => {
+                            (s, pool.as_ref())
+                        }
+                        _ => (&integrator, None),
                     };
                     let mut sum = [ExactSum::ZERO; 3];
                     let (mut left, mut left_weight) = ([ExactSum::ZERO; 3], 0.0);
@@ -615,11 +628,11 @@ impl Renderer {
                         }
                         let sampled = self.sample_pixel_lanes(
                             integrator,
-                            x as u32,
-                            y as u32,
+                            (x as u32, y as u32),
                             sample,
                             with_layers,
                             part,
+                            pool,
                         );
                         match sampled {
                             Some((xyz, lanes, split)) => {
@@ -716,12 +729,14 @@ impl Unfinished {
         } else {
             0.0
         };
-        let plan = TechniquePlan::new(
+        let mut plan = TechniquePlan::new(
             &scene.render.integrator,
             &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles)
                 .with_observer_density(density_over_ground)
                 .with_observer_in_air(in_air),
         );
+        // The pool's light is XYZ: a spectral film keeps each bounce's own.
+        plan.ground_pool &= scene.output.spectral_bands.is_none();
         let lane_table = LaneTable::new(&medium, cmf.range_nm(), solar_source(scene));
         Ok(Self {
             scene: scene.clone(),
