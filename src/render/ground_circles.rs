@@ -90,10 +90,12 @@ const NARROW_GROUND_EIGHTHS: usize = 3;
 /// √(u / it), at least the caller's share.
 pub const PAIR_FULL_DISTANCE_M: f64 = 4000.0;
 /// The pool's weight is whole within this distance (m) of the foot toward
-/// the sun ([`GroundSplatter::pool_weight`]).
-pub const POOL_FULL_M: f64 = 20_000.0;
-/// ... and 0 from this distance (m) on.
-pub const POOL_NONE_M: f64 = 100_000.0;
+/// the sun ([`GroundSplatter::pool_weight`]): with the sun low, a bounce
+/// and its twin this far apart no longer take the same path most of the
+/// time, and their difference's variance nears a bounce's own.
+pub const POOL_FULL_M: f64 = 10_000.0;
+/// ... and 0 from this distance (m) on, where the bounce goes alone.
+pub const POOL_NONE_M: f64 = 50_000.0;
 /// Share of the angles drawn uniformly over the visible ground.
 const UNIFORM_SHARE: f64 = 0.05;
 /// Share of the table's mass from the positions' integral alone (the rest
@@ -550,11 +552,10 @@ impl GroundSplatter {
     /// scene's symmetry about the Earth's centre ρ(x) depends on x only
     /// through the sun's zenith angle there, which over the ground seen
     /// from near it changes by less than the horizon's dip: a bounce and
-    /// its twin take nearly the same path (their difference's variance is
-    /// 10⁻³–10⁻⁶ of a bounce's 100 m from the foot, a few per cent at 1 km
-    /// in twilight), so most pairs are left out, and the ground's light
-    /// takes the pool's noise, shared by every pixel, in place of each
-    /// bounce's.
+    /// its twin take nearly the same path and their difference is small
+    /// (`BENCHMARKS.md`, the ground pool's row), so most pairs are left
+    /// out, and the ground's light takes the pool's noise, shared by every
+    /// pixel, in place of each bounce's.
     #[allow(clippy::too_many_arguments)]
     pub fn walk(
         &self,

@@ -874,8 +874,8 @@ mod tests {
         assert!(!Renderer::new(&nadir).unwrap().new_film().splats());
         // With the sun low (sunset, 2°): the air's and the ground's; high
         // (midday, 45°): the ground's alone, from the first full pass on a
-        // bounce per pixel that sees the ground (the table's count, near
-        // the lower half's 64).
+        // quarter bounce per pixel that sees the ground with the pool
+        // (the table's count, near the lower half's 64).
         let sunset = Renderer::new(&small("sunset")).unwrap();
         assert!(sunset.plan().circle_splatting && sunset.new_film().splats());
         let midday = Renderer::new(&small("midday")).unwrap();
@@ -888,7 +888,7 @@ mod tests {
         assert_eq!(stats[0].splat_paths, 0);
         for s in &stats[1..] {
             assert!(
-                (16 * 8 / 4..16 * 8 * 3 / 4).contains(&s.splat_paths),
+                (16 * 8 / 16..16 * 8 * 3 / 16).contains(&s.splat_paths),
                 "{s:?}"
             );
         }

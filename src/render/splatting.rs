@@ -20,10 +20,12 @@ const GROUND_STREAM: u64 = u64::MAX - 0x96d0;
 /// The stream of the pool's bounces at the observer's foot
 /// ([`GroundSplatter::walk`]).
 const POOL_STREAM: u64 = u64::MAX - 0x9001;
-/// The pool's bounces per ground bounce of the pass: the pool's noise is
-/// shared by every ground pixel, each bounce's own nearly cancels with its
-/// twin's.
-const POOL_PER_GROUND_WALK: f64 = 0.25;
+/// The pool's bounces per pixel that sees the ground
+/// ([`GroundSplatter::ground_pixels`]): its noise is shared by every ground
+/// pixel of the pass, a small part of the ground's, and it is drawn from
+/// its own Sobol points (a tenth to twice as many measured alike:
+/// `BENCHMARKS.md`, the ground pool's row).
+const POOL_PER_GROUND_PIXEL: f64 = 0.25;
 /// The least share of bounces traced with their twins
 /// ([`GroundSplatter::walk`]).
 const PAIR_SHARE: f64 = 1.0 / 16.0;
@@ -43,6 +45,11 @@ const GROUND_WALKS_PER_WALK: u64 = 1;
 /// measured best, and the ground's noise is flat about it in the bounces
 /// and positions (`BENCHMARKS.md`, ground splatting).
 const GROUND_WALKS_PER_GROUND_PIXEL: f64 = 1.0;
+/// The same with the pool: the walks then carry only the pairs'
+/// differences, and most of those are left out by roulette; fewer walks
+/// leave the camera's samples more of the pass (`BENCHMARKS.md`, the
+/// ground pool's row).
+const POOLED_GROUND_WALKS_PER_GROUND_PIXEL: f64 = 0.25;
 /// Points splatted per pixel in each pass after the first ([`circles`];
 /// each with two directions and paths): with more, the camera's own
 /// samples (single scattering, the ground) get too few passes; 2 and 3
@@ -53,6 +60,16 @@ const SPLAT_PATHS_PER_PIXEL: u64 = 2;
 /// many, so the learned density takes over sooner (`BENCHMARKS.md`,
 /// learned splat density).
 const FIRST_SPLAT_PATHS_PER_PIXEL: u64 = 1;
+
+/// Ground bounces per pixel that sees the ground where the air's light is
+/// not splatted, with the pool or without.
+fn ground_walks_per_ground_pixel(pool: bool) -> f64 {
+    if pool {
+        POOLED_GROUND_WALKS_PER_GROUND_PIXEL
+    } else {
+        GROUND_WALKS_PER_GROUND_PIXEL
+    }
+}
 
 /// Points splatted per pixel in pass `pass` (≥ 1).
 fn splat_paths_per_pixel(pass: u32) -> u64 {
@@ -75,12 +92,14 @@ struct ChunkSplats {
 impl Renderer {
     /// The splats of pass `pass` ([`circles`]): [`splat_paths_per_pixel`]
     /// paths per pixel, each with its ground bounces, or where only the
-    /// ground's light is splatted [`GROUND_WALKS_PER_GROUND_PIXEL`]
+    /// ground's light is splatted [`ground_walks_per_ground_pixel`]
     /// bounces per pixel that sees the ground, in
     /// chunks whose splats are added in the chunks' order, so the image
-    /// does not depend on the thread count. Stops between batches of chunks
-    /// once `cancelled()` returns true; the film divides by the paths
-    /// actually splatted. Returns the paths and the discarded splats.
+    /// does not depend on the thread count. With `pool` (the pass's
+    /// [`Self::ground_pool`]) the ground's bounces go with their twins.
+    /// Stops between batches of chunks once `cancelled()` returns true; the
+    /// film divides by the paths actually splatted. Returns the paths and
+    /// the discarded splats.
     pub(crate) fn splat_pass(
         &self,
         film: &mut Film,
@@ -117,7 +136,7 @@ impl Renderer {
             (Some(_), _) => pixels * splat_paths_per_pixel(pass),
             // At least one: a ground the table finds no mass for can still
             // be seen (its uniform share), and must not go without light.
-            (None, Some(g)) => (g.ground_pixels() * GROUND_WALKS_PER_GROUND_PIXEL)
+            (None, Some(g)) => (g.ground_pixels() * ground_walks_per_ground_pixel(pool))
                 .ceil()
                 .max(1.0) as u64,
             (None, None) => return (0, 0),
@@ -217,8 +236,8 @@ impl Renderer {
     /// The pool of pass `pass` where the plan has one (and the ground is
     /// splatted): the mean of its bounces from the observer's foot, each
     /// with generator and wavelengths of its own, in XYZ
-    /// ([`GroundSplatter::walk`]), [`POOL_PER_GROUND_WALK`] per ground
-    /// bounce of the pass; summed in index order, so the image does not
+    /// ([`GroundSplatter::walk`]), [`POOL_PER_GROUND_PIXEL`] per pixel that
+    /// sees the ground; summed in index order, so the image does not
     /// depend on the thread count.
     pub(crate) fn ground_pool(
         &self,
@@ -226,15 +245,7 @@ impl Renderer {
         pass: u32,
     ) -> Option<GroundPool<'_>> {
         let ground = self.ground_splatter().filter(|_| self.plan.ground_pool)?;
-        let walks = if self.plan.circle_splatting {
-            u64::from(self.scene.render.width)
-                * u64::from(self.scene.render.height)
-                * splat_paths_per_pixel(pass)
-                * GROUND_WALKS_PER_WALK
-        } else {
-            (ground.ground_pixels() * GROUND_WALKS_PER_GROUND_PIXEL).ceil() as u64
-        };
-        let count = ((walks as f64 * POOL_PER_GROUND_WALK).ceil() as u64).max(MIN_POOL);
+        let count = ((ground.ground_pixels() * POOL_PER_GROUND_PIXEL).ceil() as u64).max(MIN_POOL);
         let terms: Vec<[f64; 3]> = (0..count)
             .into_par_iter()
             .map(|index| self.pool_term(ground, integrator, pass, index))
