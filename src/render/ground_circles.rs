@@ -453,7 +453,7 @@ impl GroundSplatter {
     /// radian) and where its positions land in `camera` — `None` where
     /// none does (the bounce would serve no pixel: no path is traced).
     /// With `pair_share` (the pool's), the bounce is kept by Russian
-    /// roulette with probability q ([`Self::pair_probability`]), returned
+    /// roulette with probability q ([`pair_probability`]), returned
     /// too (1 without), and `None` where it is not.
     #[allow(clippy::type_complexity)]
     fn circle(

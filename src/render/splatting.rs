@@ -31,6 +31,10 @@ const POOL_PER_GROUND_PIXEL: f64 = 0.25;
 const PAIR_SHARE: f64 = 1.0 / 16.0;
 /// The least bounces in a pool.
 const MIN_POOL: u64 = 256;
+/// The most: the pool's noise is shared by every ground pixel, and a
+/// pass's noise in each pixel does not fall with the image's size, so a
+/// larger image needs no larger pool (a 256×128 map takes about 4 000).
+const MAX_POOL: u64 = 16_384;
 /// Ground bounces per path splatted in the air, each splatting
 /// [`GROUND_SPLATS`] positions: more positions per bounce pay better than
 /// more bounces (`BENCHMARKS.md`).
@@ -237,15 +241,17 @@ impl Renderer {
     /// splatted): the mean of its bounces from the observer's foot, each
     /// with generator and wavelengths of its own, in XYZ
     /// ([`GroundSplatter::walk`]), [`POOL_PER_GROUND_PIXEL`] per pixel that
-    /// sees the ground; summed in index order, so the image does not
-    /// depend on the thread count.
+    /// sees the ground (at least [`MIN_POOL`], at most [`MAX_POOL`]);
+    /// summed in index order, so the image does not depend on the thread
+    /// count.
     pub(crate) fn ground_pool(
         &self,
         integrator: &Integrator<'_>,
         pass: u32,
     ) -> Option<GroundPool<'_>> {
         let ground = self.ground_splatter().filter(|_| self.plan.ground_pool)?;
-        let count = ((ground.ground_pixels() * POOL_PER_GROUND_PIXEL).ceil() as u64).max(MIN_POOL);
+        let count = ((ground.ground_pixels() * POOL_PER_GROUND_PIXEL).ceil() as u64)
+            .clamp(MIN_POOL, MAX_POOL);
         let terms: Vec<[f64; 3]> = (0..count)
             .into_par_iter()
             .map(|index| self.pool_term(ground, integrator, pass, index))
