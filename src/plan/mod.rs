@@ -127,6 +127,9 @@ pub struct Conditions {
     /// Whether the haze is thin enough for the sky model to stand in for
     /// the ground's light ([`GROUND_CONTROL_MAX_AEROSOL_DEPTH`]).
     pub haze_fits_model: bool,
+    /// Whether the render keeps a spectral image, whose lanes need each
+    /// ground bounce's own estimate (no `ground_pool`: its light is XYZ).
+    pub spectral_image: bool,
 }
 
 /// The air's density at the observer, over the ground's, above which the
@@ -149,6 +152,16 @@ impl Conditions {
             observer_in_air: true,
             haze_fits_model: atmosphere.aerosol_optical_depth(550.0)
                 <= GROUND_CONTROL_MAX_AEROSOL_DEPTH,
+            spectral_image: false,
+        }
+    }
+
+    /// The same conditions for a render that keeps a spectral image or not.
+    #[must_use]
+    pub fn with_spectral_image(self, spectral_image: bool) -> Self {
+        Self {
+            spectral_image,
+            ..self
         }
     }
 
@@ -183,6 +196,7 @@ impl Conditions {
         observer_low: true,
         observer_in_air: true,
         haze_fits_model: true,
+        spectral_image: false,
     };
 }
 
@@ -304,8 +318,8 @@ pub struct TechniquePlan {
     pub ground_splatting: bool,
     /// Each splatted ground bounce less its twin at the observer's foot,
     /// the camera's samples adding the twin's mean from a pool of bounces
-    /// per pass (only with `ground_splatting`; the renderer turns it off
-    /// for a spectral image).
+    /// per pass (only with `ground_splatting`, never with a spectral
+    /// image).
     pub ground_pool: bool,
     /// The model's skylight as a control variate at ground bounces (never
     /// with a limit on the orders, which it would mix, nor with the
@@ -390,7 +404,9 @@ impl TechniquePlan {
             control_source: options.control_source.unwrap_or_default(),
             circle_splatting,
             ground_splatting,
-            ground_pool: ground_splatting && options.ground_pool.unwrap_or(true),
+            ground_pool: ground_splatting
+                && options.ground_pool.unwrap_or(true)
+                && !conditions.spectral_image,
             ground_control: options
                 .ground_control
                 .unwrap_or(conditions.observer_in_air && conditions.haze_fits_model)

@@ -473,8 +473,7 @@ impl Renderer {
             .and_then(|splatting| self.ground_pool(splatting, pass));
         let (mut splat_paths, mut splat_discarded) = (0, 0);
         if let Some(splatting) = &splatting {
-            (splat_paths, splat_discarded) =
-                self.splat_pass(film, pass, splatting, pool.is_some(), cancelled);
+            (splat_paths, splat_discarded) = self.splat_pass(film, pass, splatting, cancelled);
         }
         let width = film.width as usize;
         let discarded = AtomicU64::new(splat_discarded);
@@ -729,14 +728,13 @@ impl Unfinished {
         } else {
             0.0
         };
-        let mut plan = TechniquePlan::new(
+        let plan = TechniquePlan::new(
             &scene.render.integrator,
             &Conditions::new(scene.sun.elevation_deg, &scene.atmosphere, circles)
                 .with_observer_density(density_over_ground)
-                .with_observer_in_air(in_air),
+                .with_observer_in_air(in_air)
+                .with_spectral_image(scene.output.spectral_bands.is_some()),
         );
-        // The pool's light is XYZ: a spectral film keeps each bounce's own.
-        plan.ground_pool &= scene.output.spectral_bands.is_none();
         let lane_table = LaneTable::new(&medium, cmf.range_nm(), solar_source(scene));
         Ok(Self {
             scene: scene.clone(),

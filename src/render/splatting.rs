@@ -99,8 +99,9 @@ impl Renderer {
     /// ground's light is splatted [`ground_walks_per_ground_pixel`]
     /// bounces per pixel that sees the ground, in
     /// chunks whose splats are added in the chunks' order, so the image
-    /// does not depend on the thread count. With `pool` (the pass's
-    /// [`Self::ground_pool`]) the ground's bounces go with their twins.
+    /// does not depend on the thread count. With the plan's `ground_pool`
+    /// (the pass's [`Self::ground_pool`]) the ground's bounces go with
+    /// their twins.
     /// Stops between batches of chunks once `cancelled()` returns true; the
     /// film divides by the paths actually splatted. Returns the paths and
     /// the discarded splats.
@@ -109,7 +110,6 @@ impl Renderer {
         film: &mut Film,
         pass: u32,
         integrator: &Integrator<'_>,
-        pool: bool,
         cancelled: &(dyn Fn() -> bool + Sync),
     ) -> (u64, u64) {
         const CHUNK: u64 = 256;
@@ -133,6 +133,7 @@ impl Renderer {
             None
         };
         let ground = self.ground_splatter();
+        let pool = self.plan.ground_pool;
         let pixels = u64::from(film.width) * u64::from(film.height);
         // A walk is a path splatted in the air with its ground bounces, or
         // without the air's splats a single ground bounce.
