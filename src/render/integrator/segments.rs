@@ -9,6 +9,13 @@ use super::{
     MAX_BRANCHES, MAX_SUNLIGHT_SAMPLES,
 };
 
+/// The share of a ground pixel's light from the air in front of it at and
+/// above which the camera's branches from that air always go on; below it
+/// they go on with probability share / this (at least 1/20). From near the
+/// ground the share is a few per cent and a branch is a whole path of
+/// multiple scattering; from orbit it is a third and they all go on.
+const CAMERA_BRANCH_SHARE: f64 = 0.25;
+
 impl<'a> Integrator<'a> {
     /// The segment from `origin` along `dir` after `depth` scatterings,
     /// reached with weight `beta` (`at`: the guide at `origin`, if already
@@ -122,6 +129,16 @@ impl<'a> Integrator<'a> {
             // the expected scattered fraction, as an analog path would.
             (Some(d), true) if !opts.termination.russian_roulette => {
                 d.shares(0.0).0.clamp(0.05, 1.0)
+            }
+            // A camera ray whose ground's skylight is splatted: its branches
+            // carry only the air in front of the ground, a small share of
+            // the pixel from near the ground, so they are rouletted by that
+            // share (`BENCHMARKS.md`, the camera's branches over the ground).
+            (Some(d), true)
+                if depth == 0 && span.hits_ground && opts.termination.russian_roulette =>
+            {
+                let (medium, ground) = d.shares(self.medium.ground_albedo_max);
+                (medium / ((medium + ground) * CAMERA_BRANCH_SHARE)).clamp(0.05, 1.0)
             }
             (Some(_), true) => 1.0,
             _ => 0.0,
