@@ -138,7 +138,13 @@ impl<'a> Integrator<'a> {
                 if depth == 0 && span.hits_ground && opts.termination.russian_roulette =>
             {
                 let (medium, ground) = d.shares(self.medium.ground_albedo_max);
-                (medium / ((medium + ground) * CAMERA_BRANCH_SHARE)).clamp(0.05, 1.0)
+                let share = medium / ((medium + ground) * CAMERA_BRANCH_SHARE);
+                // Neither share known (0/0): every branch goes on.
+                if share.is_nan() {
+                    1.0
+                } else {
+                    share.clamp(0.05, 1.0)
+                }
             }
             (Some(_), true) => 1.0,
             _ => 0.0,
