@@ -493,12 +493,12 @@ mod tests {
         // (rays toward the ground 1°, 3° and 6° below the horizon) and from
         // an airliner (5°, 20°, 60°): the camera's light (the ground's sunlight,
         // the air's once-scattered light and the branches' paths; lanes'
-        // sum, 20 000 paths) agrees within 4 standard errors with the same
-        // integrator whose branches always go on (no Russian roulette on
-        // the camera's branches nor anywhere on the path, a plan of its
-        // own) — and both exceed, by more than 8 standard errors, the
-        // light without any branch, so a wrong weight of the branches'
-        // light would show.
+        // sum, 20 000 paths) agrees within 4 standard errors with that of
+        // a plan without Russian roulette (whose camera branches go on with
+        // the scattered fraction alone, another probability, and whose
+        // paths are never rouletted) — and both exceed, by more than 8
+        // standard errors, the light without any branch, so a wrong weight
+        // of the branches' light would show.
         for (preset, elevations_deg) in [
             ("midday", [-1.0, -3.0, -6.0]),
             ("airliner", [-5.0, -20.0, -60.0]),

@@ -9,11 +9,13 @@ use super::{
     MAX_BRANCHES, MAX_SUNLIGHT_SAMPLES,
 };
 
-/// The share of a ground pixel's light from the air in front of it at and
-/// above which the camera's branches from that air always go on; below it
-/// they go on with probability share / this (at least 1/20). From near the
-/// ground the share is a few per cent and a branch is a whole path of
-/// multiple scattering; from orbit it is a third and they all go on.
+/// The air's expected share of the light beyond a camera ray that meets a
+/// splatted ground (the segment density's scattered light over it plus the
+/// ground's transmitted light times the largest albedo) at and above which
+/// the ray's branches into that air always go on; below it they go on with
+/// probability share / this (at least 1/20). From near the ground the share
+/// is a few per cent and a branch is a whole path of multiple scattering;
+/// from orbit it is about a third and they all go on.
 const CAMERA_BRANCH_SHARE: f64 = 0.25;
 
 impl<'a> Integrator<'a> {
