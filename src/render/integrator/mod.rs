@@ -279,6 +279,14 @@ trait SegmentDensity {
     /// Expected shares of the light found by going on from the medium and
     /// from the ground (only their ratio matters).
     fn shares(&self, ground_albedo: f64) -> (f64, f64);
+
+    /// The medium's part of [`Self::shares`], medium / (medium + ground):
+    /// how a path that may go on from either chooses. `None` where neither
+    /// share is known (0/0), which no probability can be drawn from.
+    fn air_share(&self, ground_albedo: f64) -> Option<f64> {
+        let (medium, ground) = self.shares(ground_albedo);
+        Some(medium / (medium + ground)).filter(|s| !s.is_nan())
+    }
 }
 
 impl SegmentDensity for InScatterDistribution {

@@ -124,8 +124,9 @@ impl<'a> Integrator<'a> {
             _ if depth == 0 && self.splatting => 0.0,
             (Some(d), true) if ground_goes_on => {
                 // The largest albedo over wavelength: a density, not a value.
-                let (medium, ground) = d.shares(self.medium.ground_albedo_max);
-                (medium / (medium + ground)).clamp(0.05, 0.95)
+                // Neither share known: both ways even.
+                d.air_share(self.medium.ground_albedo_max)
+                    .map_or(0.5, |share| share.clamp(0.05, 0.95))
             }
             // Without Russian roulette the path must still end: go on with
             // the expected scattered fraction, as an analog path would.
@@ -139,14 +140,11 @@ impl<'a> Integrator<'a> {
             (Some(d), true)
                 if depth == 0 && span.hits_ground && opts.termination.russian_roulette =>
             {
-                let (medium, ground) = d.shares(self.medium.ground_albedo_max);
-                let share = medium / ((medium + ground) * CAMERA_BRANCH_SHARE);
-                // Neither share known (0/0): every branch goes on.
-                if share.is_nan() {
-                    1.0
-                } else {
-                    share.clamp(0.05, 1.0)
-                }
+                // Neither share known: every branch goes on. (Dividing by a
+                // power of two is exact: the same bits as the share's
+                // denominator scaled.)
+                d.air_share(self.medium.ground_albedo_max)
+                    .map_or(1.0, |share| (share / CAMERA_BRANCH_SHARE).clamp(0.05, 1.0))
             }
             (Some(_), true) => 1.0,
             _ => 0.0,
