@@ -38,7 +38,8 @@ pub fn splats_per_walk(camera: &Camera) -> usize {
     let count = (SPLATS_PER_WALK as f64 * scale / 8.0).round() as usize * 8;
     count.clamp(SPLATS_PER_WALK, MAX_SPLATS_PER_WALK)
 }
-/// Of them, drawn before the path's direction: from the Cauchy density
+/// Of them, drawn before the path's direction, whatever it turns out to
+/// be (a floor under the positions' density): from the Cauchy density
 /// about the observer's nearest point, and uniformly. The rest are drawn
 /// after it: from the Cauchy density times the phase function toward the
 /// observer at each position ([`PhaseCells`]).

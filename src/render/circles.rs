@@ -49,8 +49,14 @@
 //!   forward peak is drawn where it points at the observer. All combined
 //!   by the balance heuristic (multi-sample MIS), all stratified.
 //! * **Direction** d₀: the scene's usual mixture (the guide's table, the
-//!   sun lobe), with the phase function about each of the first round's
-//!   camera directions in equal shares (`Integrator::splat_walk`).
+//!   sun lobe), with the phase function about each of the camera's
+//!   directions at the phase cells' 32 centres in equal shares
+//!   (`Integrator::splat_walk`). Those centres fall along the arc as the
+//!   positions do, so wherever d₀ meets a position's forward peak its
+//!   density has a lobe near it; with the first round's eight directions
+//!   as anchors, a d₀ aligned with a position between them carried a
+//!   phase function many times its density, and such walks were the
+//!   heaviest splats (`BENCHMARKS.md`, the direction anchors' row).
 
 use std::f64::consts::PI;
 
@@ -65,7 +71,7 @@ use super::observer_depths::ObserverRays;
 use crate::rng::Rng;
 
 pub use super::circle_geometry::SPLATS_PER_WALK;
-use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS};
+use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS, PHASE_CELLS};
 use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK};
 
 /// Directions (each with its path) per point, shared by its positions:
@@ -534,14 +540,18 @@ impl CircleSplatter {
             let (to, camera_dir) = place(psi);
             *slot = (psi, to, camera_dir);
         }
-        let first_dirs: [DVec3; FIRST_SPLATS] = std::array::from_fn(|k| positions[k].2);
+        // The camera's directions at the phase cells' centres, evenly spaced
+        // in the Cauchy quantile (so about as the positions fall): the
+        // directions' anchors, then the cells' weights.
+        let centres: [DVec3; PHASE_CELLS] =
+            std::array::from_fn(|m| place(arc.cauchy(PhaseCells::centre(m))).1);
         let c = integrator.medium.coefficients(r, lanes);
         // Each direction's path estimate over its density, averaged over
         // all DIRECTIONS_PER_WALK draws (those that found nothing count).
         let mut directions = [(DVec3::ZERO, Lanes::splat(0.0)); DIRECTIONS_PER_WALK];
         let mut found = 0;
         for _ in 0..DIRECTIONS_PER_WALK {
-            let Some((d, pdf, radiance)) = integrator.splat_walk(y0, &first_dirs, &c, lanes, rng)
+            let Some((d, pdf, radiance)) = integrator.splat_walk(y0, &centres, &c, lanes, rng)
             else {
                 continue;
             };
@@ -556,10 +566,9 @@ impl CircleSplatter {
             return nothing;
         }
         let cells = PhaseCells::new(std::array::from_fn(|m| {
-            let (_, camera_dir) = place(arc.cauchy(PhaseCells::centre(m)));
             directions
                 .iter()
-                .map(|(d, _)| integrator.phase_mixture_pdf(&c, lanes, camera_dir.dot(*d)))
+                .map(|(d, _)| integrator.phase_mixture_pdf(&c, lanes, centres[m].dot(*d)))
                 .sum::<f64>()
         }));
         for (slot, psi) in positions[FIRST_SPLATS..].iter_mut().zip(cells.positions(

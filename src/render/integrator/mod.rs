@@ -501,7 +501,8 @@ impl<'a> Integrator<'a> {
     /// direction's density mixes the guide's table and the sun lobe, as at
     /// any scattering, with the phase function about *each* of
     /// `camera_dirs` in equal shares instead of about one incoming
-    /// direction: the walk serves a camera ray along every one of them.
+    /// direction: the walk serves camera rays along all of them and the
+    /// directions between.
     /// Returns the direction, its density (sr⁻¹) and the radiance estimate,
     /// or `None` for an empty `camera_dirs`.
     pub(crate) fn splat_walk(
