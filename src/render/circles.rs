@@ -55,8 +55,8 @@
 //!   positions do, so wherever d₀ meets a position's forward peak its
 //!   density has a lobe near it; with the first round's eight directions
 //!   as anchors, a d₀ aligned with a position between them carried a
-//!   phase function many times its density, and such walks were the
-//!   heaviest splats (`BENCHMARKS.md`, the direction anchors' row).
+//!   phase function many times its density, and such walks were among
+//!   the heaviest splats (`BENCHMARKS.md`, the direction anchors' row).
 
 use std::f64::consts::PI;
 
