@@ -36,7 +36,9 @@
 //!   of that integral (with the transmittance to the observer, the air's
 //!   scattering and the guide's mean once-scattered light at the point,
 //!   [`SkyGuide::skylight`]) holds most of the density; an analytic
-//!   density in ρ, positive wherever a circle can be seen, the rest.
+//!   density in ρ, positive wherever a circle can be seen, the rest, a
+//!   tenth of it in the thin wedge between the ground and the observer's
+//!   height, which the table's bins miss ([`super::circle_points`]).
 //!   From the second splatting pass on, most points come from a density
 //!   learned from the earlier passes' splats ([`LearnedPoints`]): the
 //!   prior's times a factor per cell of the table, where the splats' own
@@ -73,6 +75,7 @@ use crate::rng::Rng;
 pub use super::circle_geometry::SPLATS_PER_WALK;
 use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS, PHASE_CELLS};
 use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK};
+use super::circle_points::{analytic_rho_cdf, analytic_rho_density, sample_analytic_rho, Wedge};
 
 /// Directions (each with its path) per point, shared by its positions:
 /// about half a twilight walk's variance is its path's, and a second
@@ -80,10 +83,11 @@ use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK};
 const DIRECTIONS_PER_WALK: usize = 2;
 /// Share of the points drawn from the table (the rest: analytic in ρ).
 const TABLE_SHARE: f64 = 0.8;
-/// The analytic density in ρ: shares and scales (m) of two exponentials,
-/// then uniform up to the farthest visible circle.
-const RHO_SHARES: [f64; 2] = [0.5, 0.3];
-const RHO_SCALES_M: [f64; 2] = [5e3, 30e3];
+/// Share of the analytic part drawn in the wedge between the ground and
+/// the observer's height ([`Wedge`]): 0.03 and 0.1 measured alike, the
+/// horizon's row of a twilight panorama 4–13 % noisy without it and
+/// 3–5 % with either (`BENCHMARKS.md`, the wedge's decisions row).
+const WEDGE_SHARE: f64 = 0.1;
 /// Share of the points drawn from the density learned from the pass's
 /// predecessors' splats ([`LearnedPoints`]), once there are any; the rest
 /// from the prior (table and analytic parts), which keeps the density
@@ -115,44 +119,6 @@ const TABLE_MIN_COS: f64 = 0.05;
 
 pub use super::film_spectral::Splat;
 
-/// Density (per ρ, per φ-turn) of the analytic part.
-fn analytic_rho_density(rho_m: f64, rho_max: f64) -> f64 {
-    let exponentials: f64 = RHO_SHARES
-        .iter()
-        .zip(RHO_SCALES_M)
-        .map(|(share, scale)| share * (-rho_m / scale).exp() / scale)
-        .sum();
-    let uniform = 1.0 - RHO_SHARES.iter().sum::<f64>();
-    exponentials
-        + if rho_m < rho_max {
-            uniform / rho_max
-        } else {
-            0.0
-        }
-}
-
-fn sample_analytic_rho(u: f64, v: f64, rho_max: f64) -> f64 {
-    let (a, b) = (RHO_SHARES[0], RHO_SHARES[0] + RHO_SHARES[1]);
-    if u < a {
-        -RHO_SCALES_M[0] * (1.0 - v).ln()
-    } else if u < b {
-        -RHO_SCALES_M[1] * (1.0 - v).ln()
-    } else {
-        v * rho_max
-    }
-}
-
-/// Probability of ρ ≤ `rho_m` under [`analytic_rho_density`].
-fn analytic_rho_cdf(rho_m: f64, rho_max: f64) -> f64 {
-    let exponentials: f64 = RHO_SHARES
-        .iter()
-        .zip(RHO_SCALES_M)
-        .map(|(share, scale)| share * -(-rho_m / scale).exp_m1())
-        .sum();
-    let uniform = 1.0 - RHO_SHARES.iter().sum::<f64>();
-    exponentials + uniform * (rho_m / rho_max).min(1.0)
-}
-
 /// Whether the scene has circles to splat along: not with the sun at the
 /// observer's zenith or nadir (see `SunAxis::new`).
 pub fn has_circles(observer_m: DVec3, sun_direction: DVec3) -> bool {
@@ -163,6 +129,8 @@ pub fn has_circles(observer_m: DVec3, sun_direction: DVec3) -> bool {
 pub struct CircleSplatter {
     axis: SunAxis,
     rho_max_m: f64,
+    /// The wedge below the observer's height; `None` on the ground.
+    wedge: Option<Wedge>,
     /// Bin edges in ρ (m).
     rho_edges: Vec<f64>,
     /// Probability of each (ρ, φ) bin, row-major in ρ; empty if nothing in
@@ -343,13 +311,20 @@ impl CircleSplatter {
             (Vec::new(), Vec::new())
         };
         // The analytic part's mass per bin: its mass in the ρ interval,
-        // spread evenly in φ.
+        // spread evenly in φ, and the wedge's.
+        let wedge = Wedge::new(axis.r0_m - axis.ground_m, rho_max);
         let prior_bins = (0..TABLE_RHO_BINS * TABLE_PHI_BINS)
             .map(|bin| {
                 let i = bin / TABLE_PHI_BINS;
-                let analytic = (analytic_rho_cdf(rho_edges[i + 1], rho_max)
+                let j = bin % TABLE_PHI_BINS;
+                let even = (analytic_rho_cdf(rho_edges[i + 1], rho_max)
                     - analytic_rho_cdf(rho_edges[i], rho_max))
                     / TABLE_PHI_BINS as f64;
+                let analytic = wedge.map_or(even, |wedge| {
+                    let phi = |j: usize| j as f64 / TABLE_PHI_BINS as f64 * 2.0 * PI;
+                    let mass = wedge.mass((rho_edges[i], rho_edges[i + 1]), (phi(j), phi(j + 1)));
+                    (1.0 - WEDGE_SHARE) * even + WEDGE_SHARE * mass
+                });
                 if bins.is_empty() {
                     analytic
                 } else {
@@ -364,6 +339,7 @@ impl CircleSplatter {
         Some(Self {
             axis,
             rho_max_m: rho_max,
+            wedge,
             rho_edges,
             bins,
             cdf,
@@ -450,7 +426,10 @@ impl CircleSplatter {
     fn polar_densities(&self, learned: &LearnedPoints, rho: f64, phi: f64) -> PolarDensities {
         let bin = self.bin(rho, phi);
         let per_area = |bins: &[f64]| bin.map_or(0.0, |bin| bins[bin] / self.bin_area(bin));
-        let analytic = analytic_rho_density(rho, self.rho_max_m) / (2.0 * PI);
+        let even = analytic_rho_density(rho, self.rho_max_m) / (2.0 * PI);
+        let analytic = self.wedge.map_or(even, |wedge| {
+            (1.0 - WEDGE_SHARE) * even + WEDGE_SHARE * wedge.density(rho, phi)
+        });
         let prior = if self.bins.is_empty() {
             analytic
         } else {
@@ -467,23 +446,23 @@ impl CircleSplatter {
     fn sample_polar(&self, learned: &LearnedPoints, rng: &mut Rng) -> (f64, f64) {
         let draw = |cdf: &[f64], u: f64| cdf.partition_point(|&c| c <= u).min(cdf.len() - 1);
         let (u, v, w) = (rng.uniform(), rng.uniform(), rng.uniform());
-        // The component's uniform, drawn only where there is a choice (as
-        // before learning existed: the same random numbers, the same walks).
-        let mut x = if learned.is_learned() || !self.bins.is_empty() {
-            rng.uniform()
-        } else {
-            1.0
-        };
+        // The component's uniform.
+        let mut x = rng.uniform();
         if learned.is_learned() {
             if x < LEARNED_SHARE {
                 return self.in_bin(draw(&learned.cdf, u), v, w);
             }
             x = (x - LEARNED_SHARE) / (1.0 - LEARNED_SHARE);
         }
-        if !self.bins.is_empty() && x < TABLE_SHARE {
-            self.in_bin(draw(&self.cdf, u), v, w)
-        } else {
-            (sample_analytic_rho(u, v, self.rho_max_m), w * 2.0 * PI)
+        if !self.bins.is_empty() {
+            if x < TABLE_SHARE {
+                return self.in_bin(draw(&self.cdf, u), v, w);
+            }
+            x = (x - TABLE_SHARE) / (1.0 - TABLE_SHARE);
+        }
+        match self.wedge {
+            Some(wedge) if x < WEDGE_SHARE => wedge.sample(u, v, w),
+            _ => (sample_analytic_rho(u, v, self.rho_max_m), w * 2.0 * PI),
         }
     }
 
@@ -897,6 +876,51 @@ mod tests {
         );
         let mut rng = Rng::new(17, 0);
         let n = 400_000u32;
+        // And a g that lives only in the wedge below the observer's height
+        // (2 m), where the table's bins hold nothing: the air in front of
+        // the ground and along the horizon's grazing rays.
+        let height = splatter.axis.r0_m - splatter.axis.ground_m;
+        let in_wedge = |rho: f64, phi: f64| {
+            let dr = rho * phi.sin();
+            (-height..=0.0).contains(&dr)
+        };
+        let g_wedge = |rho: f64, phi: f64| {
+            if (50.0..20e3).contains(&rho) && in_wedge(rho, phi) {
+                1.0 + 0.5 * phi.cos()
+            } else {
+                0.0
+            }
+        };
+        // ∫ over both wedges of (1 + ½ cos φ) dφ dρ, 50 m < ρ < 20 km, by
+        // quadrature: the cosine's integrals over [π, π + β] and
+        // [2π − β, 2π] are −sin β and +sin β and cancel, leaving ∫ 2β dρ.
+        let steps = 200_000u32;
+        let exact_wedge: f64 = (0..steps)
+            .map(|k| {
+                let rho = 50.0 + (f64::from(k) + 0.5) / f64::from(steps) * (20e3 - 50.0);
+                2.0 * (height / rho).min(1.0).asin()
+            })
+            .sum::<f64>()
+            * (20e3 - 50.0)
+            / f64::from(steps);
+        // Few points fall there (under 1 % of the learned density's): more.
+        let n_wedge = 4_000_000u32;
+        for density in [&prior, &learned] {
+            let (mut sum, mut sum2) = (0.0, 0.0);
+            for _ in 0..n_wedge {
+                let (rho, phi) = splatter.sample_polar(density, &mut rng);
+                let v = g_wedge(rho, phi) / splatter.polar_densities(density, rho, phi).drawn;
+                sum += v;
+                sum2 += v * v;
+            }
+            let mean = sum / f64::from(n_wedge);
+            let se = ((sum2 / f64::from(n_wedge) - mean * mean) / f64::from(n_wedge)).sqrt();
+            assert!(
+                (mean - exact_wedge).abs() < 4.0 * se,
+                "wedge: {mean} against {exact_wedge} (SE {se})"
+            );
+            assert!(se < 0.04 * exact_wedge, "wedge: SE {se}");
+        }
         for density in [&prior, &learned] {
             let (mut sum, mut sum2) = (0.0, 0.0);
             for _ in 0..n {
@@ -926,35 +950,5 @@ mod tests {
             (mean / rho_max - 1.0).abs() < 0.02,
             "{mean} against {rho_max}"
         );
-    }
-
-    #[test]
-    fn the_analytic_density_integrates_to_one() {
-        let rho_max = 1.2e6;
-        let n = 400_000u32;
-        let sum: f64 = (0..n)
-            .map(|i| {
-                let rho = (f64::from(i) + 0.5) / f64::from(n) * 4.0 * rho_max;
-                analytic_rho_density(rho, rho_max)
-            })
-            .sum::<f64>()
-            * 4.0
-            * rho_max
-            / f64::from(n);
-        assert!((sum - 1.0).abs() < 2e-3, "{sum}");
-        // Its distribution function is its integral (midpoint rule, up to
-        // a few ρ; the learned density reads the prior's mass per bin off it).
-        for upper in [3e3, 40e3, 0.5 * rho_max, rho_max, 2.0 * rho_max] {
-            let integral: f64 = (0..n)
-                .map(|i| analytic_rho_density((f64::from(i) + 0.5) / f64::from(n) * upper, rho_max))
-                .sum::<f64>()
-                * upper
-                / f64::from(n);
-            let cdf = analytic_rho_cdf(upper, rho_max);
-            assert!(
-                (cdf - integral).abs() < 2e-3,
-                "ρ {upper}: {cdf} vs {integral}"
-            );
-        }
     }
 }

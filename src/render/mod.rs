@@ -12,6 +12,7 @@ pub mod adaptive;
 pub mod alloc;
 pub mod camera;
 pub mod circle_geometry;
+pub mod circle_points;
 pub mod circles;
 pub mod columns;
 pub mod control;
