@@ -72,8 +72,8 @@ fn probe_hash(preset: &str) -> u64 {
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
     ("midday", 0x26fd4629de52d1d9, 0xcdea56fd08a2ece6),
-    ("sunset", 0x96c4570b3c10af31, 0xad865225b08aa9b4),
-    ("twilight", 0xc0ba17841cf71985, 0x412516a49174889e),
+    ("sunset", 0x6576f615af88660d, 0xad865225b08aa9b4),
+    ("twilight", 0xc17fdaaeba584555, 0x412516a49174889e),
     ("space", 0xbc5a5d4f6b5b29ee, 0xa09d945a1cd8d6e5),
 ];
 
