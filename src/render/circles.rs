@@ -84,9 +84,9 @@ const DIRECTIONS_PER_WALK: usize = 2;
 /// Share of the points drawn from the table (the rest: analytic in ρ).
 const TABLE_SHARE: f64 = 0.8;
 /// Share of the analytic part drawn in the wedge between the ground and
-/// the observer's height ([`Wedge`]): 0.03 and 0.1 measured alike, the
-/// horizon's row of a twilight panorama 4–13 % noisy without it and
-/// 3–5 % with either (`BENCHMARKS.md`, the wedge's decisions row).
+/// the observer's height ([`Wedge`]), which the table misses; 0.03 and 0.1
+/// measured alike on the horizon's row (`BENCHMARKS.md`, the wedge's
+/// decisions row).
 const WEDGE_SHARE: f64 = 0.1;
 /// Share of the points drawn from the density learned from the pass's
 /// predecessors' splats ([`LearnedPoints`]), once there are any; the rest
