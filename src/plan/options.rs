@@ -148,10 +148,10 @@ pub struct IntegratorOptions {
     pub ground_control: Option<bool>,
     /// The splats' transmittance from the observer (`circle_splatting`,
     /// `ground_splatting`) read from a table of the observer's rays over
-    /// their direction and length, a random sixteenth of them corrected by
-    /// the unbiased estimate, which keeps the sum unbiased
-    /// ([`crate::render::observer_depths`]); `false`: every splat takes the
-    /// unbiased estimate itself.
+    /// their direction and length, a random share of them
+    /// ([`crate::render::observer_depths::CORRECTED_SHARE`]) corrected by
+    /// the unbiased estimate, which keeps the sum unbiased; `false`: every
+    /// splat takes the unbiased estimate itself.
     pub splat_transmittance_table: bool,
     /// The shadow rays toward the sun read their transmittance from the
     /// table of columns toward it over altitude and solar zenith
