@@ -78,9 +78,11 @@ use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK};
 use super::circle_points::{analytic_rho_cdf, analytic_rho_density, sample_analytic_rho, Wedge};
 
 /// Directions (each with its path) per point, shared by its positions:
-/// about half a twilight walk's variance is its path's, and a second
-/// direction pays for its path where a third does not (`BENCHMARKS.md`).
-const DIRECTIONS_PER_WALK: usize = 2;
+/// most of a low sun's walk's variance is its paths', and a walk's
+/// positions cost several of its paths, so a third direction pays for
+/// itself where a fourth no longer does (`BENCHMARKS.md`, the decisions
+/// table's row on the air splat walks' directions).
+const DIRECTIONS_PER_WALK: usize = 3;
 /// Share of the points drawn from the table (the rest: analytic in ρ).
 const TABLE_SHARE: f64 = 0.8;
 /// Share of the analytic part drawn in the wedge between the ground and

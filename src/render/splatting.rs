@@ -55,7 +55,7 @@ const GROUND_WALKS_PER_GROUND_PIXEL: f64 = 1.0;
 /// ground pool's row).
 const POOLED_GROUND_WALKS_PER_GROUND_PIXEL: f64 = 0.25;
 /// Points splatted per pixel in each pass after the first ([`circles`];
-/// each with two directions and paths): with more, the camera's own
+/// each with its directions and paths): with more, the camera's own
 /// samples (single scattering, the ground) get too few passes; 2 and 3
 /// measured alike, and 2 makes shorter passes (`BENCHMARKS.md`).
 const SPLAT_PATHS_PER_PIXEL: u64 = 2;
