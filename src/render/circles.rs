@@ -531,8 +531,12 @@ impl CircleSplatter {
         // all DIRECTIONS_PER_WALK draws (those that found nothing count).
         let mut directions = [(DVec3::ZERO, Lanes::splat(0.0)); DIRECTIONS_PER_WALK];
         let mut found = 0;
-        for _ in 0..DIRECTIONS_PER_WALK {
-            let Some((d, pdf, radiance)) = integrator.splat_walk(y0, &centres, &c, lanes, rng)
+        for k in 0..DIRECTIONS_PER_WALK {
+            // Each draw picks the mixture's part from its own equal share
+            // of the unit interval (stratified: `Integrator::splat_walk`).
+            let select = (k as f64 + rng.uniform()) / DIRECTIONS_PER_WALK as f64;
+            let Some((d, pdf, radiance)) =
+                integrator.splat_walk(y0, &centres, &c, lanes, select, rng)
             else {
                 continue;
             };

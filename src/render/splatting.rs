@@ -443,7 +443,10 @@ mod tests {
         // mean of 1/pdf over 40 000 draws is the sphere's 4π within 4
         // standard errors (each under 2 % of it): a density that did not
         // match the draws, such as lobes about other anchors than those
-        // drawn about, would miss it.
+        // drawn about, would miss it. The draws' picks of the mixture's
+        // part are stratified in thirds, as a walk's are: the mean holds
+        // only if the pick maps every third's uniforms onto the mixture's
+        // parts in their shares.
         let mut scene = Scene::preset("twilight").unwrap();
         scene.render.width = 32;
         scene.render.height = 16;
@@ -464,8 +467,9 @@ mod tests {
                     let (mut rng, lanes, _) =
                         renderer.splat_walk_start(&integrator, 2, SPLAT_STREAM, i);
                     let c = integrator.medium.coefficients(x.length(), &lanes);
+                    let select = ((i % 3) as f64 + rng.uniform()) / 3.0;
                     let (_, pdf, _) = integrator
-                        .splat_walk(x, &anchors, &c, &lanes, &mut rng)
+                        .splat_walk(x, &anchors, &c, &lanes, select, &mut rng)
                         .unwrap();
                     1.0 / pdf
                 })

@@ -503,6 +503,12 @@ impl<'a> Integrator<'a> {
     /// `camera_dirs` in equal shares instead of about one incoming
     /// direction: the walk serves camera rays along all of them and the
     /// directions between.
+    /// `select`, uniform over [0, 1), picks the mixture's part (the guide's
+    /// share first, then the sun lobe's, then each camera direction's) and
+    /// is used up by the pick, so that a caller drawing several directions
+    /// can stratify it: u ↦ direction maps the uniform density to the
+    /// mixture's whatever `select`'s range, so the mean over strata of
+    /// f/p is unbiased and the parts' shares no longer vary between walks.
     /// Returns the direction, its density (sr⁻¹) and the radiance estimate,
     /// or `None` for an empty `camera_dirs`.
     pub(crate) fn splat_walk(
@@ -511,6 +517,7 @@ impl<'a> Integrator<'a> {
         camera_dirs: &[DVec3],
         c: &super::medium::Coefficients,
         lanes: &SpectralLanes,
+        select: f64,
         rng: &mut Rng,
     ) -> Option<(DVec3, f64, Radiance)> {
         if camera_dirs.is_empty() {
@@ -525,15 +532,21 @@ impl<'a> Integrator<'a> {
             0.0
         };
         let alpha = opts.directions.sun_lobe;
+        // `select` over [0, g) picks the guide; the rest, rescaled to
+        // [0, 1), the sun lobe below α and the camera directions' lobes in
+        // equal shares above it.
         let dir = match at.as_ref() {
-            Some(guide) if guides && rng.uniform() < g => guide.sample(rng).0,
-            _ if rng.uniform() < alpha => {
-                self.sample_phase_direction(self.sun_direction, c, lanes, rng)
-            }
+            Some(guide) if select < g => guide.sample(rng).0,
             _ => {
-                let n = camera_dirs.len();
-                let k = ((rng.uniform() * n as f64) as usize).min(n - 1);
-                self.sample_phase_direction(camera_dirs[k], c, lanes, rng)
+                let u = (select - g) / (1.0 - g);
+                if u < alpha {
+                    self.sample_phase_direction(self.sun_direction, c, lanes, rng)
+                } else {
+                    let n = camera_dirs.len();
+                    let v = (u - alpha) / (1.0 - alpha);
+                    let k = ((v * n as f64) as usize).min(n - 1);
+                    self.sample_phase_direction(camera_dirs[k], c, lanes, rng)
+                }
             }
         };
         let lobes = camera_dirs
