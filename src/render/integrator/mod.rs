@@ -503,12 +503,14 @@ impl<'a> Integrator<'a> {
     /// `camera_dirs` in equal shares instead of about one incoming
     /// direction: the walk serves camera rays along all of them and the
     /// directions between.
+    ///
     /// `select`, uniform over [0, 1), picks the mixture's part (the guide's
     /// share first, then the sun lobe's, then each camera direction's) and
     /// is used up by the pick, so that a caller drawing several directions
     /// can stratify it: u ↦ direction maps the uniform density to the
     /// mixture's whatever `select`'s range, so the mean over strata of
     /// f/p is unbiased and the parts' shares no longer vary between walks.
+    ///
     /// Returns the direction, its density (sr⁻¹) and the radiance estimate,
     /// or `None` for an empty `camera_dirs`.
     pub(crate) fn splat_walk(
