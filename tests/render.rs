@@ -521,72 +521,107 @@ fn band_stats(runs: &[[f64; 3]], band: usize) -> (f64, f64) {
     (mean, var / n)
 }
 
+/// The means of a scene's pixels in up to three bands (`band_of` a
+/// pixel's row and view direction, `None` to leave it out) with circle
+/// splatting and without, over `seeds` independent seeds each: they agree
+/// within 4 standard errors (the spread of the seeds' means: a walk's
+/// splats land in many pixels, so pixels are not independent), and each
+/// band's standard error is below `limits[band]` of its mean.
+fn assert_splatting_keeps_the_means(
+    what: &str,
+    base: &Scene,
+    band_of: &dyn Fn(u32, glam::DVec3) -> Option<usize>,
+    limits: [f64; 3],
+) {
+    let (width, height) = (base.render.width, base.render.height);
+    let camera = skyrender::render::Camera::new(&base.camera, width, height);
+    let band_means = |scene: &Scene| {
+        let image = render(scene, 2);
+        let mut sums = [(0.0, 0.0); 3];
+        for y in 0..height {
+            for x in 0..width {
+                let Some(dir) = camera.direction(f64::from(x) + 0.5, f64::from(y) + 0.5) else {
+                    continue;
+                };
+                let Some(band) = band_of(y, dir) else {
+                    continue;
+                };
+                let p = image[(y * width + x) as usize];
+                sums[band].0 += f64::from(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
+                sums[band].1 += 1.0;
+            }
+        }
+        sums.map(|(s, n): (f64, f64)| s / n.max(1.0))
+    };
+    let seeds = 6;
+    let runs = |splatting: bool| -> Vec<[f64; 3]> {
+        (0..seeds)
+            .map(|s| {
+                let mut scene = base.clone();
+                scene.render.integrator.circle_splatting = Some(splatting);
+                scene.render.seed = 1000 * u64::from(splatting) + s;
+                band_means(&scene)
+            })
+            .collect()
+    };
+    let (on, off) = (runs(true), runs(false));
+    for (band, limit) in limits.into_iter().enumerate() {
+        let ((m_on, v_on), (m_off, v_off)) = (band_stats(&on, band), band_stats(&off, band));
+        let se = (v_on + v_off).sqrt();
+        assert!(m_off > 0.0, "{what}, band {band}: no pixels");
+        assert!(
+            (m_on - m_off).abs() < 4.0 * se,
+            "{what}, band {band}: {m_on} with splatting, {m_off} without (SE {se})"
+        );
+        assert!(
+            se < limit * m_off,
+            "{what}, band {band}: SE {se} of {m_off}"
+        );
+    }
+}
+
 #[test]
 fn circle_splatting_leaves_the_sky_alone() {
     // The splats of `render::circles` carry the light scattered more than
     // once in the air in place of the camera's own branches; the sky's
-    // expectation must not move. A walk's splats land in up to 64 pixels,
-    // so pixels are not independent: the standard error comes from the
-    // spread of whole-sky means over independent seeds. Per preset (the
-    // walks delta-tracked by day, through segment estimates at twilight)
-    // and per band of elevations (a wrong pixel Jacobian would tilt the
-    // sky; the top row, which reaches the pole, is left to the camera's
-    // branches), the means with and without splatting agree within 4
-    // standard errors, which are below 2.5 % of the sky (~1 %: a bias above
-    // ~5 % fails; 4 % for the top row alone).
+    // expectation must not move. Per preset (the walks delta-tracked by
+    // day, through segment estimates at twilight) and per band of
+    // elevations (a wrong pixel Jacobian would tilt the sky; the top row,
+    // which reaches the pole, is left to the camera's branches), the means
+    // with and without splatting agree within 4 standard errors, which are
+    // below 2.5 % of the sky (~1 %: a bias above ~5 % fails; 4 % for the
+    // top row alone).
     for preset in ["twilight", "midday"] {
-        let (width, height) = (32u32, 16u32);
-        let base = small(preset, width, height, 12);
-        let camera = skyrender::render::Camera::new(&base.camera, width, height);
+        let base = small(preset, 32, 16, 12);
         let sun =
             skyrender::render::direction_from_az_el(base.sun.azimuth_deg, base.sun.elevation_deg);
         // Bands of sky rows (away from the sun): 0 (the pole's), 1–3
         // (high), 4–7 (low).
-        let band_means = |scene: &Scene| {
-            let image = render(scene, 2);
-            let mut sums = [(0.0, 0.0); 3];
-            for y in 0..height / 2 {
-                for x in 0..width {
-                    let dir = camera
-                        .direction(f64::from(x) + 0.5, f64::from(y) + 0.5)
-                        .unwrap();
-                    if dir.dot(sun) > 20.0_f64.to_radians().cos() {
-                        continue;
-                    }
-                    let p = image[(y * width + x) as usize];
-                    let band = &mut sums[usize::from(y > 0) + usize::from(y > 3)];
-                    band.0 += f64::from(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
-                    band.1 += 1.0;
-                }
-            }
-            sums.map(|(s, n)| s / n)
+        let band_of = |y: u32, dir: glam::DVec3| {
+            (y < 8 && dir.dot(sun) <= 20.0_f64.to_radians().cos())
+                .then_some(usize::from(y > 0) + usize::from(y > 3))
         };
-        let seeds = 6;
-        let runs = |splatting: bool| -> Vec<[f64; 3]> {
-            (0..seeds)
-                .map(|s| {
-                    let mut scene = base.clone();
-                    scene.render.integrator.circle_splatting = Some(splatting);
-                    scene.render.seed = 1000 * u64::from(splatting) + s;
-                    band_means(&scene)
-                })
-                .collect()
-        };
-        let (on, off) = (runs(true), runs(false));
-        for band in 0..3 {
-            let ((m_on, v_on), (m_off, v_off)) = (band_stats(&on, band), band_stats(&off, band));
-            let se = (v_on + v_off).sqrt();
-            assert!(
-                (m_on - m_off).abs() < 4.0 * se,
-                "{preset}, band {band}: {m_on} with splatting, {m_off} without (SE {se})"
-            );
-            let limit = if band == 0 { 0.04 } else { 0.025 };
-            assert!(
-                se < limit * m_off,
-                "{preset}, band {band}: SE {se} of {m_off}"
-            );
-        }
+        assert_splatting_keeps_the_means(preset, &base, &band_of, [0.04, 0.025, 0.025]);
     }
+}
+
+#[test]
+fn circle_splatting_leaves_a_perspective_view_alone() {
+    // A perspective view at twilight, away from the sun: most of a walk's
+    // circle lies outside its frame, and the positions' density
+    // (`render::circles`) weighs the pixels per steradian only within it;
+    // the sky's means in three bands of rows must not move (as above).
+    let mut base = small("twilight", 32, 16, 12);
+    base.camera = skyrender::scene::CameraParams {
+        kind: skyrender::scene::CameraKind::Perspective,
+        fov_deg: 60.0,
+        yaw_deg: 60.0,
+        pitch_deg: 14.0,
+        roll_deg: 0.0,
+    };
+    // Rows 0–3, 4–7 and 8–11 above the horizon.
+    let band_of = |y: u32, dir: glam::DVec3| (y < 12 && dir.z > 0.0).then_some(y as usize / 4);
+    assert_splatting_keeps_the_means("twilight, perspective", &base, &band_of, [0.025; 3]);
 }
 
 #[test]

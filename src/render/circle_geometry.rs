@@ -20,6 +20,15 @@ pub const MAX_SPLATS_PER_WALK: usize = 192;
 /// centre) of a 256×128 equirect map, where [`SPLATS_PER_WALK`] pay.
 const BASE_PIXELS_PER_RADIAN: f64 = 256.0 / (2.0 * PI);
 
+/// The camera's pixels per steradian at its image's centre (zero where no
+/// view passes through it).
+fn centre_pixels_per_sr(camera: &Camera) -> f64 {
+    let (width, height) = camera.size();
+    camera
+        .direction(0.5 * width, 0.5 * height)
+        .map_or(0.0, |d| camera.pixels_per_sr(d))
+}
+
 /// Positions per point for `camera`: [`SPLATS_PER_WALK`] times the square
 /// root of its pixels per radian over a 256×128 equirect map's, a multiple
 /// of 8 up to [`MAX_SPLATS_PER_WALK`]. A circle crosses pixels in
@@ -30,14 +39,62 @@ const BASE_PIXELS_PER_RADIAN: f64 = 256.0 / (2.0 * PI);
 /// 1024×512, twice the 96's square-root law, 192 gave 0.88× and 128
 /// 0.91–0.94× (`BENCHMARKS.md`, the circle splatting row).
 pub fn splats_per_walk(camera: &Camera) -> usize {
-    let (width, height) = camera.size();
-    let per_sr = camera
-        .direction(0.5 * width, 0.5 * height)
-        .map_or(0.0, |d| camera.pixels_per_sr(d));
+    let per_sr = centre_pixels_per_sr(camera);
     let scale = (per_sr.max(0.0).sqrt() / BASE_PIXELS_PER_RADIAN).sqrt();
     let count = (SPLATS_PER_WALK as f64 * scale / 8.0).round() as usize * 8;
     count.clamp(SPLATS_PER_WALK, MAX_SPLATS_PER_WALK)
 }
+
+/// The phase cells' factor for a position at offset `to` from the
+/// observer ([`PixelWeight::at`]): where its view falls on a pixel that
+/// takes splats, the camera's pixels per steradian there over those at the
+/// image's centre, at most a cap (the circle splatter's, as its point
+/// table's importance); elsewhere 1.
+///
+/// Why: with positions drawn at density q per steradian of view, a pixel
+/// of solid angle Ω_p gets about N q_p Ω_p of a walk's N splats, each
+/// f_p / (N q_p) (f_p its light per steradian), and the variance its mean
+/// takes from them is about f_p² / (N q_p Ω_p). Summed over the pixels at
+/// a fixed Σ_p q_p Ω_p = 1, that is least (Lagrange: f_p² / (N q_p² Ω_p)
+/// = λ Ω_p) for q_p ∝ f_p / Ω_p, the light times the pixels per
+/// steradian. The phase cells follow the light (the Cauchy density's 1/t²,
+/// the phase functions); this factor adds the pixels, so that an equirect
+/// map's rows near the poles (1/cos el pixels per steradian) get positions
+/// in proportion to their pixels, not their solid angle. Off the image the
+/// factor stays 1: drawing a perspective view's positions into its frame
+/// (a factor of 0 outside) cost more time than it took out
+/// (`BENCHMARKS.md`, the row on the positions' pixel density).
+#[derive(Clone, Copy, Debug)]
+pub(super) struct PixelWeight {
+    centre_per_sr: f64,
+    max: f64,
+}
+
+impl PixelWeight {
+    /// For `camera`, capped at `max`.
+    pub(super) fn new(camera: &Camera, max: f64) -> Self {
+        Self {
+            centre_per_sr: centre_pixels_per_sr(camera),
+            max,
+        }
+    }
+
+    /// The factor toward `to` (an offset from the observer).
+    pub(super) fn at(&self, camera: &Camera, to: DVec3) -> f64 {
+        let dir = to.normalize();
+        let (width, height) = camera.size();
+        let on_a_pixel = camera.project(dir).is_some_and(|(px, py)| {
+            (0.0..width).contains(&px)
+                && (0.0..height).contains(&py)
+                && camera.pixel_density_bounded(px as u32, py as u32)
+        });
+        if !on_a_pixel {
+            return 1.0;
+        }
+        (camera.pixels_per_sr(dir) / self.centre_per_sr).min(self.max)
+    }
+}
+
 /// Of them, drawn before the path's direction, whatever it turns out to
 /// be (a floor under the positions' density): from the Cauchy density
 /// about the observer's nearest point, and uniformly. The rest are drawn
@@ -281,7 +338,9 @@ pub(super) struct PhaseCells {
 }
 
 impl PhaseCells {
-    /// From the (non-negative) phase function at each cell's centre.
+    /// From each cell's non-negative weight at its centre (the phase
+    /// functions toward the observer, times the camera's pixels per
+    /// steradian there: `CircleSplatter`'s walk).
     pub(super) fn new(weights: [f64; PHASE_CELLS]) -> Self {
         let total: f64 = weights.iter().sum();
         let even = 1.0 / PHASE_CELLS as f64;
@@ -323,5 +382,42 @@ impl PhaseCells {
             let within = ((v - below) / self.probabilities[m]).clamp(0.0, 1.0);
             arc.cauchy((m as f64 + within) / PHASE_CELLS as f64)
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::render::direction_from_az_el;
+    use crate::scene::{CameraKind, CameraParams};
+
+    #[test]
+    fn the_pixel_weight_follows_the_pixels_per_steradian_on_the_image() {
+        // An equirect map has 1/cos el pixels per steradian: the factor is
+        // 1 on the horizon, 2 at 60° and capped near the poles; the rows
+        // at the poles take no splats, and there it is 1.
+        let params = |kind| CameraParams {
+            kind,
+            yaw_deg: 90.0,
+            ..CameraParams::default()
+        };
+        let map = Camera::new(&params(CameraKind::Equirect), 256, 128);
+        let weight = PixelWeight::new(&map, 20.0);
+        let at = |w: &PixelWeight, c: &Camera, az: f64, el: f64| {
+            w.at(c, 3e4 * direction_from_az_el(az, el))
+        };
+        assert!((at(&weight, &map, 10.0, 0.3) - 1.0).abs() < 1e-3);
+        assert!((at(&weight, &map, 200.0, -60.0) - 2.0).abs() < 1e-9);
+        assert_eq!(at(&weight, &map, 0.0, 88.0), 20.0);
+        assert_eq!(at(&weight, &map, 0.0, 89.9), 1.0);
+        // A perspective view 90° wide: 1/cos³ of the angle off its axis
+        // inside the frame, 1 outside it and behind it.
+        let view = Camera::new(&params(CameraKind::Perspective), 200, 100);
+        let weight = PixelWeight::new(&view, 20.0);
+        assert!((at(&weight, &view, 90.0, 0.0) - 1.0).abs() < 1e-9);
+        let off = 40.0_f64.to_radians().cos();
+        assert!((at(&weight, &view, 130.0, 0.0) - off.powi(-3)).abs() < 1e-9);
+        assert_eq!(at(&weight, &view, 140.0, 0.0), 1.0);
+        assert_eq!(at(&weight, &view, 270.0, 0.0), 1.0);
     }
 }

@@ -47,9 +47,11 @@
 //!   directions: a few from a Cauchy density about the point nearest the
 //!   observer (t² ≈ d² + c ψ² there) and a few uniform. After them, most:
 //!   from the Cauchy density times the phase functions toward the observer
-//!   at each position given the d₀ (`PhaseCells`), so that an aerosol's
-//!   forward peak is drawn where it points at the observer. All combined
-//!   by the balance heuristic (multi-sample MIS), all stratified.
+//!   at each position given the d₀ and the camera's pixels per steradian
+//!   there (`PhaseCells`), so that an aerosol's forward peak is drawn where
+//!   it points at the observer and each pixel gets its share of positions
+//!   whatever its solid angle. All combined by the balance heuristic
+//!   (multi-sample MIS), all stratified.
 //! * **Direction** d₀: the scene's usual mixture (the guide's table, the
 //!   sun lobe), with the phase function about each of the camera's
 //!   directions at the phase cells' 32 centres in equal shares
@@ -74,7 +76,7 @@ use crate::rng::Rng;
 
 pub use super::circle_geometry::SPLATS_PER_WALK;
 use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS, PHASE_CELLS};
-use super::circle_geometry::{splats_per_walk, MAX_SPLATS_PER_WALK};
+use super::circle_geometry::{splats_per_walk, PixelWeight, MAX_SPLATS_PER_WALK};
 use super::circle_points::{analytic_rho_cdf, analytic_rho_density, sample_analytic_rho, Wedge};
 
 /// Directions (each with its path) per point, shared by its positions:
@@ -116,7 +118,8 @@ const TABLE_WAVELENGTH_NM: f64 = 550.0;
 /// (the equirect map's pixels per steradian near its poles, whose rows are
 /// tiny; their splats follow it: only the table's importance is capped; the
 /// rows that reach the poles take no splats, see
-/// [`Camera::pixel_density_bounded`]).
+/// [`Camera::pixel_density_bounded`]); the positions' factor for the
+/// pixels ([`PixelWeight`]) is capped at its reciprocal alike.
 const TABLE_MIN_COS: f64 = 0.05;
 
 pub use super::film_spectral::Splat;
@@ -148,6 +151,8 @@ pub struct CircleSplatter {
     observer: ObserverRays,
     /// Positions per point ([`splats_per_walk`]).
     splats: usize,
+    /// The phase cells' factor for the camera's pixels.
+    pixels: PixelWeight,
 }
 
 /// The points' density learned from the splats of a render's passes so
@@ -349,6 +354,7 @@ impl CircleSplatter {
             prior_cells,
             observer,
             splats: splats_per_walk(camera),
+            pixels: PixelWeight::new(camera, 1.0 / TABLE_MIN_COS),
         })
     }
 
@@ -521,11 +527,12 @@ impl CircleSplatter {
             let (to, camera_dir) = place(psi);
             *slot = (psi, to, camera_dir);
         }
-        // The camera's directions at the phase cells' centres, evenly spaced
-        // in the Cauchy quantile (so about as the positions fall): the
-        // directions' anchors, then the cells' weights.
-        let centres: [DVec3; PHASE_CELLS] =
-            std::array::from_fn(|m| place(arc.cauchy(PhaseCells::centre(m))).1);
+        // The phase cells' centres, evenly spaced in the Cauchy quantile (so
+        // about as the positions fall): their camera directions are the
+        // directions' anchors, then, with their views, the cells' weights.
+        let placed: [(DVec3, DVec3); PHASE_CELLS] =
+            std::array::from_fn(|m| place(arc.cauchy(PhaseCells::centre(m))));
+        let centres = placed.map(|(_, camera_dir)| camera_dir);
         let c = integrator.medium.coefficients(r, lanes);
         // Each direction's path estimate over its density, averaged over
         // all DIRECTIONS_PER_WALK draws (those that found nothing count).
@@ -551,10 +558,11 @@ impl CircleSplatter {
             return nothing;
         }
         let cells = PhaseCells::new(std::array::from_fn(|m| {
-            directions
-                .iter()
-                .map(|(d, _)| integrator.phase_mixture_pdf(&c, lanes, centres[m].dot(*d)))
-                .sum::<f64>()
+            self.pixels.at(camera, placed[m].0)
+                * directions
+                    .iter()
+                    .map(|(d, _)| integrator.phase_mixture_pdf(&c, lanes, centres[m].dot(*d)))
+                    .sum::<f64>()
         }));
         for (slot, psi) in positions[FIRST_SPLATS..].iter_mut().zip(cells.positions(
             &arc,
