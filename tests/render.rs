@@ -521,17 +521,19 @@ fn band_stats(runs: &[[f64; 3]], band: usize) -> (f64, f64) {
     (mean, var / n)
 }
 
-/// The means of a scene's pixels in up to three bands (`band_of` a
-/// pixel's row and view direction, `None` to leave it out) with circle
-/// splatting and without, over `seeds` independent seeds each: they agree
-/// within 4 standard errors (the spread of the seeds' means: a walk's
-/// splats land in many pixels, so pixels are not independent), and each
-/// band's standard error is below `limits[band]` of its mean.
-fn assert_splatting_keeps_the_means(
+/// The means of a scene's pixels in bands (`band_of` a pixel's row and
+/// view direction, `None` to leave it out; one band per entry of
+/// `limits`) with a kind of splatting (`splat` sets it on or off) and
+/// without, over six independent seeds each: they agree within 4 standard
+/// errors (the spread of the seeds' means: a walk's splats land in many
+/// pixels, so pixels are not independent), and each band's standard error
+/// is below `limits[band]` of its mean.
+fn assert_splats_keep_the_means(
     what: &str,
     base: &Scene,
+    splat: &dyn Fn(&mut Scene, bool),
     band_of: &dyn Fn(u32, glam::DVec3) -> Option<usize>,
-    limits: [f64; 3],
+    limits: &[f64],
 ) {
     let (width, height) = (base.render.width, base.render.height);
     let camera = skyrender::render::Camera::new(&base.camera, width, height);
@@ -558,26 +560,31 @@ fn assert_splatting_keeps_the_means(
         (0..seeds)
             .map(|s| {
                 let mut scene = base.clone();
-                scene.render.integrator.circle_splatting = Some(splatting);
+                splat(&mut scene, splatting);
                 scene.render.seed = 1000 * u64::from(splatting) + s;
                 band_means(&scene)
             })
             .collect()
     };
     let (on, off) = (runs(true), runs(false));
-    for (band, limit) in limits.into_iter().enumerate() {
+    for (band, &limit) in limits.iter().enumerate() {
         let ((m_on, v_on), (m_off, v_off)) = (band_stats(&on, band), band_stats(&off, band));
         let se = (v_on + v_off).sqrt();
         assert!(m_off > 0.0, "{what}, band {band}: no pixels");
         assert!(
             (m_on - m_off).abs() < 4.0 * se,
-            "{what}, band {band}: {m_on} with splatting, {m_off} without (SE {se})"
+            "{what}, band {band}: {m_on} with the splats, {m_off} without (SE {se})"
         );
         assert!(
             se < limit * m_off,
             "{what}, band {band}: SE {se} of {m_off}"
         );
     }
+}
+
+/// Sets `render.integrator.circle_splatting`.
+fn circle_splatting(scene: &mut Scene, on: bool) {
+    scene.render.integrator.circle_splatting = Some(on);
 }
 
 #[test]
@@ -601,7 +608,13 @@ fn circle_splatting_leaves_the_sky_alone() {
             (y < 8 && dir.dot(sun) <= 20.0_f64.to_radians().cos())
                 .then_some(usize::from(y > 0) + usize::from(y > 3))
         };
-        assert_splatting_keeps_the_means(preset, &base, &band_of, [0.04, 0.025, 0.025]);
+        assert_splats_keep_the_means(
+            preset,
+            &base,
+            &circle_splatting,
+            &band_of,
+            &[0.04, 0.025, 0.025],
+        );
     }
 }
 
@@ -621,7 +634,13 @@ fn circle_splatting_leaves_a_perspective_view_alone() {
     };
     // Rows 0–3, 4–7 and 8–11 above the horizon.
     let band_of = |y: u32, dir: glam::DVec3| (y < 12 && dir.z > 0.0).then_some(y as usize / 4);
-    assert_splatting_keeps_the_means("twilight, perspective", &base, &band_of, [0.025; 3]);
+    assert_splats_keep_the_means(
+        "twilight, perspective",
+        &base,
+        &circle_splatting,
+        &band_of,
+        &[0.025; 3],
+    );
 }
 
 #[test]
@@ -688,18 +707,21 @@ fn ground_splatting_leaves_the_ground_alone() {
         ("midday", small("midday", width, height, 8)),
         ("from an airliner", small("airliner", width, height, 8)),
     ];
+    let ground_splatting = |scene: &mut Scene, on: bool| {
+        scene.render.integrator.ground_splatting = Some(on);
+    };
     for (name, base) in cases {
-        let camera = skyrender::render::Camera::new(&base.camera, width, height);
-        let observer_up = glam::DVec3::Z;
+        let perspective = base.camera.kind == skyrender::scene::CameraKind::Perspective;
         // Bands: the horizon's row, the rows below, the rows near the
         // nadir (the bottom row, the pole's, is left to the camera's
-        // bounces); the perspective view in its upper and lower half.
-        let band_of = |x: u32, y: u32| -> Option<usize> {
-            let dir = camera.direction(f64::from(x) + 0.5, f64::from(y) + 0.5)?;
-            if dir.dot(observer_up) >= 0.0 {
+        // bounces); the perspective view in its upper and lower half. The
+        // horizon's row (band 0 of the map) sees the far ground's grazing
+        // light: 4 %.
+        let band_of = |y: u32, dir: glam::DVec3| -> Option<usize> {
+            if dir.z >= 0.0 {
                 return None;
             }
-            if base.camera.kind == skyrender::scene::CameraKind::Perspective {
+            if perspective {
                 return Some(usize::from(y >= height / 2));
             }
             match y {
@@ -709,51 +731,12 @@ fn ground_splatting_leaves_the_ground_alone() {
                 _ => None,
             }
         };
-        let band_means = |scene: &Scene| {
-            let image = render(scene, 2);
-            let mut sums = [(0.0, 0.0); 3];
-            for y in 0..height {
-                for x in 0..width {
-                    let Some(band) = band_of(x, y) else {
-                        continue;
-                    };
-                    let p = image[(y * width + x) as usize];
-                    sums[band].0 += f64::from(0.2126 * p[0] + 0.7152 * p[1] + 0.0722 * p[2]);
-                    sums[band].1 += 1.0;
-                }
-            }
-            sums.map(|(s, n): (f64, f64)| if n > 0.0 { s / n } else { f64::NAN })
+        let limits: &[f64] = if perspective {
+            &[0.04, 0.025]
+        } else {
+            &[0.04, 0.025, 0.025]
         };
-        let seeds = 6;
-        let runs = |ground: bool| -> Vec<[f64; 3]> {
-            (0..seeds)
-                .map(|s| {
-                    let mut scene = base.clone();
-                    scene.render.integrator.ground_splatting = Some(ground);
-                    scene.render.seed = 1000 * u64::from(ground) + s;
-                    band_means(&scene)
-                })
-                .collect()
-        };
-        let (on, off) = (runs(true), runs(false));
-        for band in 0..3 {
-            if on[0][band].is_nan() {
-                continue;
-            }
-            let ((m_on, v_on), (m_off, v_off)) = (band_stats(&on, band), band_stats(&off, band));
-            let se = (v_on + v_off).sqrt();
-            assert!(
-                (m_on - m_off).abs() < 4.0 * se,
-                "{name}, band {band}: {m_on} with ground splatting, {m_off} without (SE {se})"
-            );
-            // The horizon's row (band 0 of the map) sees the far ground's
-            // grazing light: 4 %.
-            let limit = if band == 0 { 0.04 } else { 0.025 };
-            assert!(
-                se < limit * m_off,
-                "{name}, band {band}: SE {se} of {m_off}"
-            );
-        }
+        assert_splats_keep_the_means(name, &base, &ground_splatting, &band_of, limits);
     }
 }
 
