@@ -269,6 +269,17 @@ impl Camera {
         }
     }
 
+    /// Image position (pixels) where direction `dir` appears, if it lands
+    /// inside the image on a pixel that takes splats
+    /// ([`Self::pixel_density_bounded`]).
+    pub fn splat_position(&self, dir: DVec3) -> Option<(f64, f64)> {
+        let (px, py) = self.project(dir)?;
+        ((0.0..self.width).contains(&px)
+            && (0.0..self.height).contains(&py)
+            && self.pixel_density_bounded(px as u32, py as u32))
+        .then_some((px, py))
+    }
+
     /// Image position (pixels) where direction `dir` appears, if it does.
     /// Used to check the mappings and to mark the sun in the preview.
     pub fn project(&self, dir: DVec3) -> Option<(f64, f64)> {

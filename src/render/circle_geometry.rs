@@ -82,13 +82,7 @@ impl PixelWeight {
     /// The factor toward `to` (an offset from the observer).
     pub(super) fn at(&self, camera: &Camera, to: DVec3) -> f64 {
         let dir = to.normalize();
-        let (width, height) = camera.size();
-        let on_a_pixel = camera.project(dir).is_some_and(|(px, py)| {
-            (0.0..width).contains(&px)
-                && (0.0..height).contains(&py)
-                && camera.pixel_density_bounded(px as u32, py as u32)
-        });
-        if !on_a_pixel {
+        if camera.splat_position(dir).is_none() {
             return 1.0;
         }
         (camera.pixels_per_sr(dir) / self.centre_per_sr).min(self.max)

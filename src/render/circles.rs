@@ -572,7 +572,7 @@ impl CircleSplatter {
             let (to, camera_dir) = place(psi);
             *slot = (psi, to, camera_dir);
         }
-        let (width, height) = camera.size();
+        let (width, _) = camera.size();
         let mut discarded = 0;
         let first = out.len();
         for &(psi, to, cam_dir) in positions.iter() {
@@ -583,15 +583,9 @@ impl CircleSplatter {
             if per_sr <= 0.0 {
                 continue;
             }
-            let Some((px, py)) = camera.project(dir) else {
+            let Some((px, py)) = camera.splat_position(dir) else {
                 continue;
             };
-            if !(0.0..width).contains(&px)
-                || !(0.0..height).contains(&py)
-                || !camera.pixel_density_bounded(px as u32, py as u32)
-            {
-                continue;
-            }
             let Some(tr) = self.observer.transmittance(integrator, dir, t, lanes, rng) else {
                 continue;
             };

@@ -401,14 +401,8 @@ impl GroundSplatter {
         if per_sr <= 0.0 {
             return None;
         }
-        let (px, py) = camera.project(dir)?;
-        let (width, height) = camera.size();
-        if !(0.0..width).contains(&px)
-            || !(0.0..height).contains(&py)
-            || !camera.pixel_density_bounded(px as u32, py as u32)
-        {
-            return None;
-        }
+        let (px, py) = camera.splat_position(dir)?;
+        let (width, _) = camera.size();
         let weight =
             per_sr * cos_x * ground_m * ground_m * arc.sines.0 / (t_m * t_m * arc.density(psi));
         Some(Landing {
