@@ -72,7 +72,18 @@ pub fn phase_gamma(wavelength_nm: f64) -> f64 {
 /// Phase function per steradian (integrates to 1 over the sphere) at
 /// scattering-angle cosine `mu`, for anisotropy `gamma`.
 pub fn phase(mu: f64, gamma: f64) -> f64 {
-    3.0 / (16.0 * PI * (1.0 + 2.0 * gamma)) * ((1.0 + 3.0 * gamma) + (1.0 - gamma) * mu * mu)
+    let (norm, constant, square) = phase_terms(gamma);
+    norm * (constant + square * mu * mu)
+}
+
+/// [`phase`] as n (a + b μ²): (n, a, b) for anisotropy `gamma`, with
+/// n = 3/(16π(1 + 2γ)), a = 1 + 3γ and b = 1 − γ.
+pub fn phase_terms(gamma: f64) -> (f64, f64, f64) {
+    (
+        3.0 / (16.0 * PI * (1.0 + 2.0 * gamma)),
+        1.0 + 3.0 * gamma,
+        1.0 - gamma,
+    )
 }
 
 /// The second Legendre moment k₂ = 2π ∫ p(μ) P₂(μ) dμ of [`phase`] (k₀ = 1,

@@ -573,6 +573,7 @@ impl CircleSplatter {
             *slot = (psi, to, camera_dir);
         }
         let (width, _) = camera.size();
+        let scattering = integrator.scattering_phases_at(&c, lanes);
         let mut discarded = 0;
         let first = out.len();
         for &(psi, to, cam_dir) in positions.iter() {
@@ -593,10 +594,7 @@ impl CircleSplatter {
                 r * r * circle.sin_theta * per_sr / (t * t * point_density * position_density);
             let mut in_scattered = Lanes::splat(0.0);
             for (d, radiance) in directions {
-                let phases = integrator.scattering_phases(&c, lanes, cam_dir.dot(*d));
-                for (s, (p, l)) in in_scattered.iter_mut().zip(phases.iter().zip(radiance)) {
-                    *s += p * l;
-                }
+                in_scattered += scattering.at(cam_dir.dot(*d)) * *radiance;
             }
             let mut xyz = [0.0; 3];
             let mut spectral = super::film_spectral::SplatLanes::default();

@@ -173,6 +173,34 @@ fn lane_scattering_phase(
         + c.aerosol_scattering[j] * aerosol_phase
 }
 
+/// σ_s p(μ) per lane at one point, for many cosines μ
+/// ([`Integrator::scattering_phases_at`]): the Rayleigh part as n (a + b μ²)
+/// per lane ([`rayleigh::phase_terms`]) times σ_s,R, the aerosol's
+/// phase function once per μ (per lane only where it varies with the
+/// wavelength) times σ_s,A; inactive lanes 0.
+pub(crate) struct ScatteringPhases<'a> {
+    rayleigh: Lanes,
+    norm: Lanes,
+    constant: Lanes,
+    square: Lanes,
+    aerosol: Lanes,
+    medium: &'a super::medium::Medium,
+    lanes: &'a SpectralLanes,
+}
+
+impl ScatteringPhases<'_> {
+    /// σ_s p(μ) of each lane at cosine `mu` (the same operations as
+    /// [`Integrator::scattering_phases`], so the same bits).
+    #[inline]
+    pub(crate) fn at(&self, mu: f64) -> Lanes {
+        let aerosol = self.medium.aerosol_phases(mu, self.lanes);
+        Lanes::from_fn(|j| {
+            self.rayleigh[j] * (self.norm[j] * (self.constant[j] + self.square[j] * mu * mu))
+                + self.aerosol[j] * aerosol[j]
+        })
+    }
+}
+
 /// Uniforms a scattering direction draws ([`Integrator::sample_scatter_direction`]
 /// without a guide: the lobe, the lane, the component, μ and φ).
 const DIRECTION_UNIFORMS: usize = 5;
@@ -426,6 +454,33 @@ impl<'a> Integrator<'a> {
                 0.0
             }
         })
+    }
+
+    /// [`Self::scattering_phases`] at one point's coefficients `c`, for
+    /// many cosines: the per-lane factors found once.
+    pub(crate) fn scattering_phases_at<'b>(
+        &'b self,
+        c: &super::medium::Coefficients,
+        lanes: &'b SpectralLanes,
+    ) -> ScatteringPhases<'b> {
+        let mut phases = ScatteringPhases {
+            rayleigh: Lanes::splat(0.0),
+            norm: Lanes::splat(0.0),
+            constant: Lanes::splat(0.0),
+            square: Lanes::splat(0.0),
+            aerosol: Lanes::splat(0.0),
+            medium: self.medium,
+            lanes,
+        };
+        for j in 0..lanes.active {
+            let (norm, constant, square) = rayleigh::phase_terms(lanes.rayleigh_gamma[j]);
+            phases.rayleigh[j] = c.rayleigh[j];
+            phases.norm[j] = norm;
+            phases.constant[j] = constant;
+            phases.square[j] = square;
+            phases.aerosol[j] = c.aerosol_scattering[j];
+        }
+        phases
     }
 
     /// Radiance arriving at `origin` from direction `-dir` (i.e. looking along `dir`).
