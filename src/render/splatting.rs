@@ -158,79 +158,102 @@ impl Renderer {
         // The points' density is the one learned from earlier passes, fixed
         // for this pass; this pass's walks then refine it for the next.
         let mut learned = std::mem::take(&mut film.learned_points);
-        let mut chunk = 0;
-        while chunk < chunks && !cancelled() {
-            let end = (chunk + chunks_per_batch).min(chunks);
-            let batch: Vec<ChunkSplats> = (chunk..end)
-                .into_par_iter()
-                .map(|c| {
-                    let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
-                    let per_walk = splatter.map_or(0, CircleSplatter::splats_per_walk)
-                        + ground.as_ref().map_or(0, |g| {
-                            ground_walks_per_walk as usize * g.splats_per_bounce()
-                        });
-                    let mut splats = Vec::with_capacity(CHUNK as usize * per_walk);
-                    let mut moments = Vec::with_capacity(CHUNK as usize);
-                    let mut discarded = 0;
-                    for walk in walks.clone() {
-                        if let Some(splatter) = splatter {
-                            let (mut rng, lanes, pdfs) =
-                                self.splat_walk_start(integrator, pass, SPLAT_STREAM, walk);
-                            let weights = self.xyz_weights(&lanes, pdfs);
-                            let before = splats.len();
-                            let walked = splatter.walk(
-                                integrator,
-                                &self.camera,
-                                &lanes,
-                                &weights,
-                                &learned,
-                                &mut rng,
-                                &mut splats,
-                            );
-                            over_densities(&mut splats[before..], pdfs, n);
-                            discarded += walked.discarded;
-                            moments.extend(walked.moment);
-                        }
-                        // The ground's bounces, each a share of the walk's
-                        // unit (the film divides by walks), with their own
-                        // generators and wavelengths.
-                        if let Some(ground) = ground {
-                            for g in 0..ground_walks_per_walk {
-                                let index = walk * ground_walks_per_walk + g;
-                                let (mut rng, lanes, pdfs) =
-                                    self.splat_walk_start(integrator, pass, GROUND_STREAM, index);
-                                let weights = self.xyz_weights(&lanes, pdfs);
-                                let before = splats.len();
-                                discarded += ground.walk(
-                                    integrator,
-                                    &self.camera,
-                                    &lanes,
-                                    &weights,
-                                    1.0 / ground_walks_per_walk as f64,
-                                    pair_share,
-                                    &mut rng,
-                                    &mut splats,
-                                );
-                                over_densities(&mut splats[before..], pdfs, n);
-                            }
-                        }
-                    }
-                    ChunkSplats {
-                        splats,
-                        discarded,
-                        walks: walks.end - walks.start,
-                        moments,
-                    }
-                })
-                .collect();
+        // Each batch's splats go to the film (in order) while the next
+        // batch runs: adding them is serial, and would leave the other
+        // threads idle. The moments wait for the pass's end, since the
+        // walks read `learned` (whose density this pass does not change).
+        let mut moments = Vec::new();
+        let mut add = |batch: Vec<ChunkSplats>| {
             for c in batch {
-                learned.add_moments(c.moments);
+                moments.extend(c.moments);
                 film.add_splats(&c.splats, c.walks);
                 paths += c.walks;
                 discarded += c.discarded;
             }
+        };
+        let mut pending: Option<Vec<ChunkSplats>> = None;
+        let mut chunk = 0;
+        while chunk < chunks && !cancelled() {
+            let end = (chunk + chunks_per_batch).min(chunks);
+            let run = || -> Vec<ChunkSplats> {
+                (chunk..end)
+                    .into_par_iter()
+                    .map(|c| {
+                        let walks = c * CHUNK..((c + 1) * CHUNK).min(paths_total);
+                        let per_walk = splatter.map_or(0, CircleSplatter::splats_per_walk)
+                            + ground.as_ref().map_or(0, |g| {
+                                ground_walks_per_walk as usize * g.splats_per_bounce()
+                            });
+                        let mut splats = Vec::with_capacity(CHUNK as usize * per_walk);
+                        let mut moments = Vec::with_capacity(CHUNK as usize);
+                        let mut discarded = 0;
+                        for walk in walks.clone() {
+                            if let Some(splatter) = splatter {
+                                let (mut rng, lanes, pdfs) =
+                                    self.splat_walk_start(integrator, pass, SPLAT_STREAM, walk);
+                                let weights = self.xyz_weights(&lanes, pdfs);
+                                let before = splats.len();
+                                let walked = splatter.walk(
+                                    integrator,
+                                    &self.camera,
+                                    &lanes,
+                                    &weights,
+                                    &learned,
+                                    &mut rng,
+                                    &mut splats,
+                                );
+                                over_densities(&mut splats[before..], pdfs, n);
+                                discarded += walked.discarded;
+                                moments.extend(walked.moment);
+                            }
+                            // The ground's bounces, each a share of the walk's
+                            // unit (the film divides by walks), with their own
+                            // generators and wavelengths.
+                            if let Some(ground) = ground {
+                                for g in 0..ground_walks_per_walk {
+                                    let index = walk * ground_walks_per_walk + g;
+                                    let (mut rng, lanes, pdfs) = self.splat_walk_start(
+                                        integrator,
+                                        pass,
+                                        GROUND_STREAM,
+                                        index,
+                                    );
+                                    let weights = self.xyz_weights(&lanes, pdfs);
+                                    let before = splats.len();
+                                    discarded += ground.walk(
+                                        integrator,
+                                        &self.camera,
+                                        &lanes,
+                                        &weights,
+                                        1.0 / ground_walks_per_walk as f64,
+                                        pair_share,
+                                        &mut rng,
+                                        &mut splats,
+                                    );
+                                    over_densities(&mut splats[before..], pdfs, n);
+                                }
+                            }
+                        }
+                        ChunkSplats {
+                            splats,
+                            discarded,
+                            walks: walks.end - walks.start,
+                            moments,
+                        }
+                    })
+                    .collect()
+            };
+            let batch = match pending.take() {
+                Some(previous) => rayon::join(|| add(previous), run).1,
+                None => run(),
+            };
+            pending = Some(batch);
             chunk = end;
         }
+        if let Some(previous) = pending {
+            add(previous);
+        }
+        learned.add_moments(moments);
         if let Some(splatter) = splatter {
             splatter.learn(&mut learned);
         }
