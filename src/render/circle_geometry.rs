@@ -6,6 +6,8 @@ use std::f64::consts::PI;
 
 use glam::DVec3;
 
+use super::medium::Lanes;
+
 use super::camera::Camera;
 
 /// Positions along a circle per point at the bench's 256×128 equirect
@@ -43,6 +45,19 @@ pub fn splats_per_walk(camera: &Camera) -> usize {
     let scale = (per_sr.max(0.0).sqrt() / BASE_PIXELS_PER_RADIAN).sqrt();
     let count = (SPLATS_PER_WALK as f64 * scale / 8.0).round() as usize * 8;
     count.clamp(SPLATS_PER_WALK, MAX_SPLATS_PER_WALK)
+}
+
+/// The air's positions per point for `camera` ([`super::circles`]): a
+/// third more than [`splats_per_walk`] (the ground's count is half of
+/// that), a multiple of 8 up to [`MAX_SPLATS_PER_WALK`]. Most of them take
+/// their light from the phase cells' centres (`AtCentres`) and cost less
+/// than a position with its own look-ups (`BENCHMARKS.md`, the row on the
+/// positions' control).
+pub fn air_splats_per_walk(camera: &Camera) -> usize {
+    (splats_per_walk(camera) * 4 / 3)
+        .div_ceil(8)
+        .saturating_mul(8)
+        .min(MAX_SPLATS_PER_WALK)
 }
 
 /// The phase cells' factor for a position at offset `to` from the
@@ -379,11 +394,61 @@ impl PhaseCells {
     }
 }
 
+/// A function of the position along an arc known at the phase cells'
+/// centres ([`PhaseCells::centre`]), linear in the Cauchy quantile
+/// between them and constant beyond the first and the last.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct AtCentres {
+    nodes: [Lanes; PHASE_CELLS],
+}
+
+impl AtCentres {
+    /// Node m (at [`PhaseCells::centre`]`(m)`) is `node(m)`.
+    pub(super) fn from_fn(node: impl FnMut(usize) -> Lanes) -> Self {
+        Self {
+            nodes: std::array::from_fn(node),
+        }
+    }
+
+    /// The value at quantile `u` of the arc's Cauchy density.
+    #[inline]
+    pub(super) fn at(&self, u: f64) -> Lanes {
+        // Node m sits at x = m.
+        let x = u * PHASE_CELLS as f64 - 0.5;
+        if x <= 0.0 {
+            return self.nodes[0];
+        }
+        let i = x as usize;
+        if i + 1 >= PHASE_CELLS {
+            return self.nodes[PHASE_CELLS - 1];
+        }
+        let f = x - i as f64;
+        let (a, b) = (self.nodes[i], self.nodes[i + 1]);
+        Lanes::from_fn(|j| a[j] + f * (b[j] - a[j]))
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
     use crate::render::direction_from_az_el;
     use crate::scene::{CameraKind, CameraParams};
+
+    #[test]
+    fn the_centres_light_is_linear_between_them_and_flat_beyond() {
+        let node = |m: usize| Lanes::from_fn(|j| (m * m) as f64 + j as f64);
+        let light = AtCentres::from_fn(node);
+        let nodes: [Lanes; PHASE_CELLS] = std::array::from_fn(node);
+        // At each centre its own node; halfway between centres 3 and 4
+        // (lane 1: 10 and 17) their mean.
+        for (m, value) in nodes.iter().enumerate() {
+            assert_eq!(light.at(PhaseCells::centre(m)), *value);
+        }
+        let halfway = (3.0 + 0.5 + 0.5) / PHASE_CELLS as f64;
+        assert!((light.at(halfway)[1] - 13.5).abs() < 1e-12);
+        assert_eq!(light.at(0.0), nodes[0]);
+        assert_eq!(light.at(1.0), nodes[PHASE_CELLS - 1]);
+    }
 
     #[test]
     fn the_pixel_weight_follows_the_pixels_per_steradian_on_the_image() {

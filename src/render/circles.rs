@@ -51,7 +51,12 @@
 //!   there (`PhaseCells`), so that an aerosol's forward peak is drawn where
 //!   it points at the observer and each pixel gets its share of positions
 //!   whatever its solid angle. All combined by the balance heuristic
-//!   (multi-sample MIS), all stratified.
+//!   (multi-sample MIS), all stratified. A position's light toward the
+//!   observer, T × the in-scattered light, is a control interpolated
+//!   between the cells' centres (T̃ the table's there); one position in
+//!   six, at a random offset, adds its own unbiased light less the
+//!   control's, times six, so each position's expectation is its own
+//!   light, and the rest skip their look-ups.
 //! * **Direction** d₀: the scene's usual mixture (the guide's table, the
 //!   sun lobe), with the phase function about each of the camera's
 //!   directions at the phase cells' 32 centres in equal shares
@@ -75,8 +80,8 @@ use super::observer_depths::ObserverRays;
 use crate::rng::Rng;
 
 pub use super::circle_geometry::SPLATS_PER_WALK;
+use super::circle_geometry::{air_splats_per_walk, AtCentres, PixelWeight, MAX_SPLATS_PER_WALK};
 use super::circle_geometry::{cauchy_scale, Arc, PhaseCells, SunAxis, FIRST_SPLATS, PHASE_CELLS};
-use super::circle_geometry::{splats_per_walk, PixelWeight, MAX_SPLATS_PER_WALK};
 use super::circle_points::{analytic_rho_cdf, analytic_rho_density, sample_analytic_rho, Wedge};
 
 /// Directions (each with its path) per point, shared by its positions:
@@ -85,6 +90,13 @@ use super::circle_points::{analytic_rho_cdf, analytic_rho_density, sample_analyt
 /// itself where a fourth no longer does (`BENCHMARKS.md`, the decisions
 /// table's row on the air splat walks' directions).
 const DIRECTIONS_PER_WALK: usize = 3;
+/// One position in this many evaluates its own transmittance and phase
+/// functions; the others take the light the cells' centres give
+/// ([`AtCentres`]), and the one corrects them all. Against every position
+/// its own (at fixed passes, with a third more positions): the sunset's
+/// whole image 0.87× the noise² × time, twilight 0.97× (`BENCHMARKS.md`,
+/// the row on the positions' control); one in 12 did about as well.
+const EXACT_EVERY: usize = 6;
 /// Share of the points drawn from the table (the rest: analytic in ρ).
 const TABLE_SHARE: f64 = 0.8;
 /// Share of the analytic part drawn in the wedge between the ground and
@@ -153,6 +165,11 @@ pub struct CircleSplatter {
     splats: usize,
     /// The phase cells' factor for the camera's pixels.
     pixels: PixelWeight,
+    /// One position in this many evaluates its own light
+    /// ([`EXACT_EVERY`]); the control's light is scaled by
+    /// `control_scale` (1; a test's way to make it wrong).
+    exact_every: usize,
+    control_scale: f64,
 }
 
 /// The points' density learned from the splats of a render's passes so
@@ -353,9 +370,20 @@ impl CircleSplatter {
             prior_bins,
             prior_cells,
             observer,
-            splats: splats_per_walk(camera),
+            splats: air_splats_per_walk(camera),
             pixels: PixelWeight::new(camera, 1.0 / TABLE_MIN_COS),
+            exact_every: EXACT_EVERY,
+            control_scale: 1.0,
         })
+    }
+
+    /// The same splatter with one position in `every` exact and the
+    /// control's light times `scale`.
+    #[cfg(test)]
+    fn with_control(mut self, every: usize, scale: f64) -> Self {
+        self.exact_every = every.max(1);
+        self.control_scale = scale;
+        self
     }
 
     /// The table bin holding (ρ, φ), if any (ρ beyond the farthest circle
@@ -574,9 +602,32 @@ impl CircleSplatter {
         }
         let (width, _) = camera.size();
         let scattering = integrator.scattering_phases_at(&c, lanes);
+        let in_scattered = |cam_dir: DVec3| {
+            let mut sum = Lanes::splat(0.0);
+            for (d, radiance) in directions {
+                sum += scattering.at(cam_dir.dot(*d)) * *radiance;
+            }
+            sum
+        };
+        // The light each position sends the observer, T × the in-scattered
+        // light, as a control: T̃ (the table's) × it at the cells' centres,
+        // interpolated between them; one position in `every` (which, by a
+        // random offset) adds its own unbiased light less the control's,
+        // times `every`, so each position's expectation is its own light.
+        let every = self.exact_every;
+        let control = AtCentres::from_fn(|m| {
+            let (to, cam_dir) = placed[m];
+            let t = to.length();
+            self.observer
+                .table_transmittance(to / t, t, lanes)
+                .map_or(Lanes::splat(0.0), |tr| {
+                    tr * in_scattered(cam_dir) * Lanes::splat(self.control_scale)
+                })
+        });
+        let offset = ((rng.uniform() * every as f64) as usize).min(every - 1);
         let mut discarded = 0;
         let first = out.len();
-        for &(psi, to, cam_dir) in positions.iter() {
+        for (i, &(psi, to, cam_dir)) in positions.iter().enumerate() {
             let position_density = arc.density(psi, &cells, phase_splats);
             let t = to.length();
             let dir = to / t;
@@ -587,19 +638,23 @@ impl CircleSplatter {
             let Some((px, py)) = camera.splat_position(dir) else {
                 continue;
             };
-            let Some(tr) = self.observer.transmittance(integrator, dir, t, lanes, rng) else {
-                continue;
+            let approx = control.at(arc.quantile(psi));
+            let light = if i % every == offset {
+                // Where the ground hides the position its light is 0.
+                let exact = self
+                    .observer
+                    .transmittance(integrator, dir, t, lanes, rng)
+                    .map_or(Lanes::splat(0.0), |tr| tr * in_scattered(cam_dir));
+                Lanes::from_fn(|j| approx[j] + every as f64 * (exact[j] - approx[j]))
+            } else {
+                approx
             };
             let weight =
                 r * r * circle.sin_theta * per_sr / (t * t * point_density * position_density);
-            let mut in_scattered = Lanes::splat(0.0);
-            for (d, radiance) in directions {
-                in_scattered += scattering.at(cam_dir.dot(*d)) * *radiance;
-            }
             let mut xyz = [0.0; 3];
             let mut spectral = super::film_spectral::SplatLanes::default();
             for j in 0..lanes.active {
-                let l = tr[j] * in_scattered[j] * weight;
+                let l = light[j] * weight;
                 for (v, bar) in xyz.iter_mut().zip(wavelength_weights[j]) {
                     *v += l * bar;
                 }
@@ -627,331 +682,4 @@ impl CircleSplatter {
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::atmosphere::{Atmosphere, AtmosphereParams};
-    use crate::render::circle_geometry::{PHASE_CELLS, PHASE_FLOOR};
-    use crate::render::direction_from_az_el;
-    use crate::render::guide::SkyGuide;
-
-    /// Phase-drawn positions at the base count.
-    const PHASE_SPLATS: usize = SPLATS_PER_WALK - FIRST_SPLATS;
-
-    fn axis_for(sun_elevation_deg: f64) -> SunAxis {
-        let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
-        let observer = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2.0);
-        SunAxis::new(
-            observer,
-            direction_from_az_el(30.0, sun_elevation_deg),
-            medium.planet_radius_m,
-            medium.top_radius_m,
-        )
-        .unwrap()
-    }
-
-    #[test]
-    fn the_axis_frame_places_the_observer_and_turns_about_the_sun() {
-        let axis = axis_for(-4.0);
-        let at_observer = axis.point(axis.r0_m, axis.theta0, 0.0);
-        assert!((at_observer - axis.observer_m).length() < 1e-6);
-        let v = DVec3::new(0.3, -0.5, 0.8).normalize();
-        let turned = axis.rotate(v, 0.7);
-        assert!((turned.dot(axis.sun) - v.dot(axis.sun)).abs() < 1e-12);
-        assert!((turned.length() - 1.0).abs() < 1e-12);
-        assert!((axis.rotate(turned, -0.7) - v).length() < 1e-12);
-        // point(r, θ, ψ) is point(r, θ, 0) turned by ψ.
-        let p = axis.point(axis.r0_m + 3e3, 1.5, 0.0);
-        assert!((axis.rotate(p, 0.2) - axis.point(axis.r0_m + 3e3, 1.5, 0.2)).length() < 1e-6);
-        // A circle's positions, one sine and cosine each, are the point and
-        // the turn back to the bit (sin(−ψ) = −sin ψ): the splats, and so
-        // the pinned images, do not depend on which form places them.
-        let circle = axis.circle(axis.r0_m + 3e3, 1.5);
-        for psi in [-2.9, -0.7, -1e-3, 0.0, 2e-4, 0.2, 1.1, 3.1] {
-            let to = axis.point(axis.r0_m + 3e3, 1.5, psi) - axis.observer_m;
-            let (placed, back) = circle.place(psi);
-            assert_eq!(placed, to, "ψ {psi}");
-            assert_eq!(back, axis.rotate(to.normalize(), -psi), "ψ {psi}");
-        }
-    }
-
-    #[test]
-    fn the_visible_arc_is_where_the_ground_does_not_hide_the_circle() {
-        // Brute force over ψ: a point is visible iff the segment from the
-        // observer misses the planet.
-        let axis = axis_for(-4.0);
-        let hidden = |y: DVec3| {
-            let o = axis.observer_m;
-            let d = y - o;
-            let s = (-o.dot(d) / d.length_squared()).clamp(0.0, 1.0);
-            (o + d * s).length() < axis.ground_m - 1e-3
-        };
-        let mut rng = Rng::new(3, 0);
-        for _ in 0..300 {
-            let r = axis.ground_m + rng.uniform() * (axis.top_m - axis.ground_m);
-            let theta = axis.theta0 + (rng.uniform() - 0.5) * 0.4;
-            let half = axis.half_arc(r, theta);
-            for k in 0..200 {
-                let psi = -PI + (f64::from(k) + 0.5) / 200.0 * 2.0 * PI;
-                let visible = !hidden(axis.point(r, theta, psi));
-                // Away from the arc's ends (the brute force's own rounding).
-                if (psi.abs() - half).abs() > 1e-6 {
-                    assert_eq!(
-                        visible,
-                        psi.abs() < half,
-                        "r {r} θ {theta} ψ {psi} half {half}"
-                    );
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn arc_positions_integrate_by_their_density() {
-        // Σ f(ψ_k)/density(ψ_k) over both rounds of positions is an unbiased
-        // estimate of ∫ f over the arc for any f: with f = 1, the 1/t² shape
-        // and a smooth one, averaged over both rounds' stratification
-        // offsets, for even cell weights, a peaked set (one cell 1000×
-        // the rest) and a zero one (all floor), at the fewest and the most
-        // positions a walk takes.
-        let (half, scale) = (0.3, 2e-4);
-        let arc = Arc::new(half, scale);
-        let mut peaked = [1.0; PHASE_CELLS];
-        peaked[PHASE_CELLS / 3] = 1000.0;
-        let cell_sets = [[1.0; PHASE_CELLS], peaked, [0.0; PHASE_CELLS]];
-        for f in [
-            (|_: f64| 1.0) as fn(f64) -> f64,
-            |psi: f64| 2e-4 / (4e-8 + psi * psi),
-            |psi: f64| psi.cos() * (1.0 + psi),
-        ] {
-            let exact = {
-                let n = 2_000_000u32;
-                (0..n)
-                    .map(|i| {
-                        let psi = -half + (f64::from(i) + 0.5) / f64::from(n) * 2.0 * half;
-                        f(psi)
-                    })
-                    .sum::<f64>()
-                    * 2.0
-                    * half
-                    / f64::from(n)
-            };
-            for (weights, phase_splats) in cell_sets
-                .into_iter()
-                .flat_map(|w| [(w, PHASE_SPLATS), (w, MAX_SPLATS_PER_WALK - FIRST_SPLATS)])
-            {
-                let cells = PhaseCells::new(weights);
-                let trials = 400u32;
-                let mut sum = 0.0;
-                for i in 0..trials {
-                    for j in 0..trials {
-                        let u = (f64::from(i) + 0.5) / f64::from(trials);
-                        let v = (f64::from(j) + 0.5) / f64::from(trials);
-                        let first = arc.first_positions(u);
-                        sum += first
-                            .iter()
-                            .copied()
-                            .chain(cells.positions(&arc, v, phase_splats))
-                            .map(|psi| f(psi) / arc.density(psi, &cells, phase_splats))
-                            .sum::<f64>();
-                    }
-                }
-                let estimate = sum / f64::from(trials * trials);
-                assert!(
-                    (estimate / exact - 1.0).abs() < 2e-3,
-                    "{estimate} against {exact} (cells {:?}, {phase_splats})",
-                    &weights[..4]
-                );
-            }
-        }
-    }
-
-    #[test]
-    fn positions_grow_with_the_images_resolution() {
-        // 96 at the bench's 256×128 map, × √2 per doubling of the pixels
-        // per radian, up to 192 from 1024×512; a 90° perspective view 160
-        // pixels wide has 80 per radian at its centre (an equirect map 503
-        // wide), 1024 wide 512 (the most).
-        let equirect = crate::scene::CameraParams::default();
-        let count = |params: &crate::scene::CameraParams, w: u32, h: u32| {
-            splats_per_walk(&Camera::new(params, w, h))
-        };
-        assert_eq!(count(&equirect, 256, 128), SPLATS_PER_WALK);
-        assert_eq!(count(&equirect, 128, 64), SPLATS_PER_WALK);
-        assert_eq!(count(&equirect, 512, 256), 136);
-        assert_eq!(count(&equirect, 1024, 512), MAX_SPLATS_PER_WALK);
-        assert_eq!(count(&equirect, 4096, 2048), MAX_SPLATS_PER_WALK);
-        let perspective = crate::scene::CameraParams {
-            kind: crate::scene::CameraKind::Perspective,
-            ..equirect
-        };
-        assert_eq!(count(&perspective, 1024, 576), MAX_SPLATS_PER_WALK);
-        assert_eq!(count(&perspective, 160, 90), 136);
-    }
-
-    #[test]
-    fn phase_cells_draw_by_their_weights() {
-        // The second round's positions fall in each cell in proportion to
-        // its probability: over offsets u on a grid of 1000, within two
-        // per stratum (the grid's rounding at the cell's edges).
-        let arc = Arc::new(0.5, 1e-3);
-        let mut weights = [0.0; PHASE_CELLS];
-        for (m, w) in weights.iter_mut().enumerate() {
-            *w = (m as f64 * 0.7).sin().abs();
-        }
-        let cells = PhaseCells::new(weights);
-        assert!((cells.probabilities.iter().sum::<f64>() - 1.0).abs() < 1e-12);
-        let trials = 1000;
-        let mut counts = [0usize; PHASE_CELLS];
-        for i in 0..trials {
-            let u = (f64::from(i) + 0.5) / f64::from(trials);
-            for psi in cells.positions(&arc, u, PHASE_SPLATS) {
-                let m = (arc.quantile(psi) * PHASE_CELLS as f64) as usize;
-                counts[m.min(PHASE_CELLS - 1)] += 1;
-            }
-        }
-        for (m, (&count, p)) in counts.iter().zip(cells.probabilities).enumerate() {
-            let expected = p * (PHASE_SPLATS * trials as usize) as f64;
-            assert!(
-                (count as f64 - expected).abs() <= 2.0 * PHASE_SPLATS as f64,
-                "cell {m}: {count} against {expected}"
-            );
-        }
-        // The floor: no cell below PHASE_FLOOR / PHASE_CELLS.
-        assert!(cells
-            .probabilities
-            .iter()
-            .all(|&p| p >= PHASE_FLOOR / PHASE_CELLS as f64 - 1e-15));
-    }
-
-    #[test]
-    fn points_follow_their_density() {
-        // E[g/p] = ∫ g over the (ρ, φ) plane for the points a twilight
-        // splatter draws (table and analytic parts), with g smooth and
-        // lopsided in φ, before and after learning (three lopsided
-        // cells' moments, one of them far out); and for the analytic
-        // sampler alone.
-        let medium = Medium::new(&Atmosphere::new(AtmosphereParams::default()));
-        let sun = direction_from_az_el(30.0, -4.0);
-        let plan = crate::plan::TechniquePlan::new(
-            &crate::plan::IntegratorOptions::default(),
-            &crate::plan::Conditions::new(-4.0, &AtmosphereParams::default(), true),
-        );
-        let guide = SkyGuide::new(&medium, sun);
-        let integrator = Integrator::new(&medium, &plan, sun).with_sky_guide(&guide);
-        let camera = Camera::new(&crate::scene::CameraParams::default(), 64, 32);
-        let observer = DVec3::new(0.0, 0.0, medium.planet_radius_m + 2.0);
-        let splatter =
-            CircleSplatter::new(&medium, &integrator, Some(&guide), &camera, observer).unwrap();
-        assert!(!splatter.bins.is_empty());
-        let rho_max = splatter.rho_max_m;
-        let scale = 50e3;
-        let g = |rho: f64, phi: f64| {
-            if rho < rho_max {
-                (-rho / scale).exp() * (1.5 + phi.cos())
-            } else {
-                0.0
-            }
-        };
-        let exact = 2.0 * PI * 1.5 * scale * (1.0 - (-rho_max / scale).exp());
-        let prior = LearnedPoints::default();
-        let mut learned = LearnedPoints::default();
-        learned.add_moments([(5, 1.0), (100, 50.0), (CELLS - 3, 3.0)]);
-        splatter.learn(&mut learned);
-        assert!(learned.is_learned() && !prior.is_learned());
-        // The learned part holds its cells' bins only, with √(S P) mass.
-        let total: f64 = learned.bins.iter().sum();
-        assert!((total - 1.0).abs() < 1e-12, "{total}");
-        let mass = |cell: usize| -> f64 {
-            (0..learned.bins.len())
-                .filter(|&b| CircleSplatter::cell(b) == cell)
-                .map(|b| learned.bins[b])
-                .sum()
-        };
-        assert_eq!(mass(6), 0.0);
-        let prior_mass = |cell: usize| -> f64 {
-            (0..splatter.prior_bins.len())
-                .filter(|&b| CircleSplatter::cell(b) == cell)
-                .map(|b| splatter.prior_bins[b])
-                .sum()
-        };
-        let ratio = mass(100) / mass(5);
-        let expected = (50.0 * prior_mass(100) / prior_mass(5)).sqrt();
-        assert!(
-            (ratio / expected - 1.0).abs() < 1e-9,
-            "{ratio} vs {expected}"
-        );
-        let mut rng = Rng::new(17, 0);
-        let n = 400_000u32;
-        // And a g that lives only in the wedge below the observer's height
-        // (2 m), where the table's bins hold nothing: the air in front of
-        // the ground and along the horizon's grazing rays.
-        let height = splatter.axis.r0_m - splatter.axis.ground_m;
-        let in_wedge = |rho: f64, phi: f64| {
-            let dr = rho * phi.sin();
-            (-height..=0.0).contains(&dr)
-        };
-        let g_wedge = |rho: f64, phi: f64| {
-            if (50.0..20e3).contains(&rho) && in_wedge(rho, phi) {
-                1.0 + 0.5 * phi.cos()
-            } else {
-                0.0
-            }
-        };
-        // ∫ over both wedges of (1 + ½ cos φ) dφ dρ, 50 m < ρ < 20 km, by
-        // quadrature: the cosine's integrals over [π, π + β] and
-        // [2π − β, 2π] are −sin β and +sin β and cancel, leaving ∫ 2β dρ.
-        let steps = 200_000u32;
-        let exact_wedge: f64 = (0..steps)
-            .map(|k| {
-                let rho = 50.0 + (f64::from(k) + 0.5) / f64::from(steps) * (20e3 - 50.0);
-                2.0 * (height / rho).min(1.0).asin()
-            })
-            .sum::<f64>()
-            * (20e3 - 50.0)
-            / f64::from(steps);
-        // E[g/p] over `count` points of `density`, and its standard error.
-        let mut estimate = |density: &LearnedPoints, g: &dyn Fn(f64, f64) -> f64, count: u32| {
-            let (mut sum, mut sum2) = (0.0, 0.0);
-            for _ in 0..count {
-                let (rho, phi) = splatter.sample_polar(density, &mut rng);
-                let v = g(rho, phi) / splatter.polar_densities(density, rho, phi).drawn;
-                sum += v;
-                sum2 += v * v;
-            }
-            let mean = sum / f64::from(count);
-            (
-                mean,
-                ((sum2 / f64::from(count) - mean * mean) / f64::from(count)).sqrt(),
-            )
-        };
-        for density in [&prior, &learned] {
-            // Few points fall in the wedge (under 1 % of the learned
-            // density's): ten times as many.
-            let (mean, se) = estimate(density, &g_wedge, 10 * n);
-            assert!(
-                (mean - exact_wedge).abs() < 4.0 * se,
-                "wedge: {mean} against {exact_wedge} (SE {se})"
-            );
-            assert!(se < 0.04 * exact_wedge, "wedge: SE {se}");
-            let (mean, se) = estimate(density, &g, n);
-            assert!(
-                (mean - exact).abs() < 4.0 * se,
-                "{mean} against {exact} (SE {se})"
-            );
-            assert!(se < 0.02 * exact, "SE {se}");
-        }
-        // The analytic part alone: ∫ 1 dρ over [0, ρ_max].
-        let mut sum = 0.0;
-        for _ in 0..n {
-            let rho = sample_analytic_rho(rng.uniform(), rng.uniform(), rho_max);
-            if rho < rho_max {
-                sum += 1.0 / analytic_rho_density(rho, rho_max);
-            }
-        }
-        let mean = sum / f64::from(n);
-        assert!(
-            (mean / rho_max - 1.0).abs() < 0.02,
-            "{mean} against {rho_max}"
-        );
-    }
-}
+mod tests;
