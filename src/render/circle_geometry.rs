@@ -396,7 +396,7 @@ impl PhaseCells {
 
 /// A function of the position along an arc known at the phase cells'
 /// centres ([`PhaseCells::centre`]), linear in the Cauchy quantile
-/// between them and constant beyond the first and the last.
+/// between them; not given beyond the first and the last centre.
 #[derive(Clone, Copy, Debug)]
 pub(super) struct AtCentres {
     nodes: [Lanes; PHASE_CELLS],
@@ -410,21 +410,22 @@ impl AtCentres {
         }
     }
 
-    /// The value at quantile `u` of the arc's Cauchy density.
+    /// The value at quantile `u` of the arc's Cauchy density, between the
+    /// first centre and the last.
     #[inline]
-    pub(super) fn at(&self, u: f64) -> Lanes {
+    pub(super) fn at(&self, u: f64) -> Option<Lanes> {
         // Node m sits at x = m.
         let x = u * PHASE_CELLS as f64 - 0.5;
-        if x <= 0.0 {
-            return self.nodes[0];
+        if x.is_nan() || x < 0.0 {
+            return None;
         }
         let i = x as usize;
         if i + 1 >= PHASE_CELLS {
-            return self.nodes[PHASE_CELLS - 1];
+            return None;
         }
-        let f = x - i as f64;
         let (a, b) = (self.nodes[i], self.nodes[i + 1]);
-        Lanes::from_fn(|j| a[j] + f * (b[j] - a[j]))
+        let f = x - i as f64;
+        Some(Lanes::from_fn(|j| a[j] + f * (b[j] - a[j])))
     }
 }
 
@@ -435,19 +436,23 @@ mod tests {
     use crate::scene::{CameraKind, CameraParams};
 
     #[test]
-    fn the_centres_light_is_linear_between_them_and_flat_beyond() {
+    fn the_centres_light_is_linear_between_them() {
         let node = |m: usize| Lanes::from_fn(|j| (m * m) as f64 + j as f64);
         let light = AtCentres::from_fn(node);
-        let nodes: [Lanes; PHASE_CELLS] = std::array::from_fn(node);
-        // At each centre its own node; halfway between centres 3 and 4
-        // (lane 1: 10 and 17) their mean.
-        for (m, value) in nodes.iter().enumerate() {
-            assert_eq!(light.at(PhaseCells::centre(m)), *value);
+        for m in 0..PHASE_CELLS {
+            let last = m + 1 == PHASE_CELLS;
+            assert_eq!(
+                light.at(PhaseCells::centre(m)),
+                Some(node(m)).filter(|_| !last)
+            );
         }
+        // Halfway between centres 3 and 4 (lane 1: 10 and 17) their mean;
+        // nothing beyond the end centres.
         let halfway = (3.0 + 0.5 + 0.5) / PHASE_CELLS as f64;
-        assert!((light.at(halfway)[1] - 13.5).abs() < 1e-12);
-        assert_eq!(light.at(0.0), nodes[0]);
-        assert_eq!(light.at(1.0), nodes[PHASE_CELLS - 1]);
+        assert!((light.at(halfway).unwrap()[1] - 13.5).abs() < 1e-12);
+        assert_eq!(light.at(0.0), None);
+        assert_eq!(light.at(0.4 / PHASE_CELLS as f64), None);
+        assert_eq!(light.at(1.0), None);
     }
 
     #[test]

@@ -56,7 +56,11 @@
 //!   between the cells' centres (T̃ the table's there); one position in
 //!   six, at a random offset, adds its own unbiased light less the
 //!   control's, times six, so each position's expectation is its own
-//!   light, and the rest skip their look-ups.
+//!   light, and the rest skip their look-ups (beyond the end centres
+//!   each position takes its own). T's own correction (the table's T̃
+//!   against the tracked estimate) stays on its share of all positions
+//!   at its own weight: times six as well, it made single splats
+//!   strongly negative on the rays that graze the ground.
 //! * **Direction** d₀: the scene's usual mixture (the guide's table, the
 //!   sun lobe), with the phase function about each of the camera's
 //!   directions at the phase cells' 32 centres in equal shares
@@ -614,7 +618,12 @@ impl CircleSplatter {
         // interpolated between them; one position in `every` (which, by a
         // random offset) adds its own unbiased light less the control's,
         // times `every`, so each position's expectation is its own light.
-        let every = self.exact_every;
+        // Beyond the end centres (`AtCentres::at`) each position takes its
+        // own.
+        // Without the table every ray's transmittance is tracked, and each
+        // position takes its own light.
+        let tabled = integrator.plan.splat_transmittance_table;
+        let every = if tabled { self.exact_every } else { 1 };
         let control = AtCentres::from_fn(|m| {
             let (to, cam_dir) = placed[m];
             let t = to.length();
@@ -638,16 +647,42 @@ impl CircleSplatter {
             let Some((px, py)) = camera.splat_position(dir) else {
                 continue;
             };
-            let approx = control.at(arc.quantile(psi));
-            let light = if i % every == offset {
-                // Where the ground hides the position its light is 0.
-                let exact = self
-                    .observer
-                    .transmittance(integrator, dir, t, lanes, rng)
-                    .map_or(Lanes::splat(0.0), |tr| tr * in_scattered(cam_dir));
-                Lanes::from_fn(|j| approx[j] + every as f64 * (exact[j] - approx[j]))
+            let light = if tabled {
+                // T̃ × the in-scattered light (0 where the ground hides the
+                // position), whose expectation the control's term keeps;
+                // then T's own correction (as `ObserverRays::transmittance`
+                // adds it), so that each position's expectation is T × it.
+                let table = || self.observer.table_transmittance(dir, t, lanes);
+                let (mut light, tr) = match control.at(arc.quantile(psi)) {
+                    Some(approx) if i % every != offset => (approx, None),
+                    Some(approx) => {
+                        let tr = table();
+                        let own = tr.map_or(Lanes::splat(0.0), |tr| tr * in_scattered(cam_dir));
+                        let light =
+                            Lanes::from_fn(|j| approx[j] + every as f64 * (own[j] - approx[j]));
+                        (light, Some(tr))
+                    }
+                    // Beyond the end centres each position its own.
+                    None => {
+                        let tr = table();
+                        (
+                            tr.map_or(Lanes::splat(0.0), |tr| tr * in_scattered(cam_dir)),
+                            Some(tr),
+                        )
+                    }
+                };
+                let known = tr;
+                let tr = || known.unwrap_or_else(table);
+                if let Some(correction) =
+                    self.observer.correction(integrator, dir, t, lanes, tr, rng)
+                {
+                    light += correction * in_scattered(cam_dir);
+                }
+                light
             } else {
-                approx
+                self.observer
+                    .transmittance(integrator, dir, t, lanes, rng)
+                    .map_or(Lanes::splat(0.0), |tr| tr * in_scattered(cam_dir))
             };
             let weight =
                 r * r * circle.sin_theta * per_sr / (t * t * point_density * position_density);
