@@ -72,8 +72,8 @@ fn probe_hash(preset: &str) -> u64 {
 /// (preset, image hash, probe hash).
 const PINS: [(&str, u64, u64); 4] = [
     ("midday", 0xa1e4dac4b383ed4d, 0xcdea56fd08a2ece6),
-    ("sunset", 0x5b36cc62a9ca2ac9, 0xad865225b08aa9b4),
-    ("twilight", 0xc8596809349c3c99, 0x412516a49174889e),
+    ("sunset", 0x6c298e96aea95479, 0xad865225b08aa9b4),
+    ("twilight", 0xe423ad644ad33a65, 0x412516a49174889e),
     ("space", 0xbc5a5d4f6b5b29ee, 0xa09d945a1cd8d6e5),
 ];
 
