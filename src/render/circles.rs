@@ -96,10 +96,10 @@ use super::circle_points::{analytic_rho_cdf, analytic_rho_density, sample_analyt
 const DIRECTIONS_PER_WALK: usize = 3;
 /// One position in this many evaluates its own transmittance and phase
 /// functions; the others take the light the cells' centres give
-/// ([`AtCentres`]), and the one corrects them all. Against every position
-/// its own (at fixed passes, with a third more positions): the sunset's
-/// whole image 0.87× the noise² × time, twilight 0.97× (`BENCHMARKS.md`,
-/// the row on the positions' control); one in 12 did about as well.
+/// ([`AtCentres`]), and the one corrects them all. Fewer exact positions
+/// cost less, and their correction, times this, adds more variance; one
+/// in six and one in 12 measured alike (`BENCHMARKS.md`, the row on the
+/// positions' control).
 const EXACT_EVERY: usize = 6;
 /// Share of the points drawn from the table (the rest: analytic in ρ).
 const TABLE_SHARE: f64 = 0.8;
