@@ -624,14 +624,16 @@ impl CircleSplatter {
         // position takes its own light.
         let tabled = integrator.plan.splat_transmittance_table;
         let every = if tabled { self.exact_every } else { 1 };
-        let control = AtCentres::from_fn(|m| {
-            let (to, cam_dir) = placed[m];
-            let t = to.length();
-            self.observer
-                .table_transmittance(to / t, t, lanes)
-                .map_or(Lanes::splat(0.0), |tr| {
-                    tr * in_scattered(cam_dir) * Lanes::splat(self.control_scale)
-                })
+        let control = tabled.then(|| {
+            AtCentres::from_fn(|m| {
+                let (to, cam_dir) = placed[m];
+                let t = to.length();
+                self.observer
+                    .table_transmittance(to / t, t, lanes)
+                    .map_or(Lanes::splat(0.0), |tr| {
+                        tr * in_scattered(cam_dir) * Lanes::splat(self.control_scale)
+                    })
+            })
         });
         let offset = ((rng.uniform() * every as f64) as usize).min(every - 1);
         let mut discarded = 0;
@@ -647,32 +649,25 @@ impl CircleSplatter {
             let Some((px, py)) = camera.splat_position(dir) else {
                 continue;
             };
-            let light = if tabled {
+            let light = if let Some(control) = &control {
                 // T̃ × the in-scattered light (0 where the ground hides the
                 // position), whose expectation the control's term keeps;
                 // then T's own correction (as `ObserverRays::transmittance`
                 // adds it), so that each position's expectation is T × it.
                 let table = || self.observer.table_transmittance(dir, t, lanes);
-                let (mut light, tr) = match control.at(arc.quantile(psi)) {
-                    Some(approx) if i % every != offset => (approx, None),
-                    Some(approx) => {
-                        let tr = table();
+                let mut looked_up = None;
+                let mut light = match control.at(arc.quantile(psi)) {
+                    Some(approx) if i % every != offset => approx,
+                    // The exact one, or beyond the end centres each its own.
+                    approx => {
+                        let tr = *looked_up.insert(table());
                         let own = tr.map_or(Lanes::splat(0.0), |tr| tr * in_scattered(cam_dir));
-                        let light =
-                            Lanes::from_fn(|j| approx[j] + every as f64 * (own[j] - approx[j]));
-                        (light, Some(tr))
-                    }
-                    // Beyond the end centres each position its own.
-                    None => {
-                        let tr = table();
-                        (
-                            tr.map_or(Lanes::splat(0.0), |tr| tr * in_scattered(cam_dir)),
-                            Some(tr),
-                        )
+                        approx.map_or(own, |approx| {
+                            Lanes::from_fn(|j| approx[j] + every as f64 * (own[j] - approx[j]))
+                        })
                     }
                 };
-                let known = tr;
-                let tr = || known.unwrap_or_else(table);
+                let tr = || looked_up.unwrap_or_else(table);
                 if let Some(correction) =
                     self.observer.correction(integrator, dir, t, lanes, tr, rng)
                 {

@@ -446,14 +446,7 @@ impl<'a> Integrator<'a> {
         lanes: &SpectralLanes,
         mu: f64,
     ) -> Lanes {
-        let aerosol = self.medium.aerosol_phases(mu, lanes);
-        Lanes::from_fn(|j| {
-            if j < lanes.active {
-                lane_scattering_phase(c, lanes, j, mu, aerosol[j])
-            } else {
-                0.0
-            }
-        })
+        self.scattering_phases_at(c, lanes).at(mu)
     }
 
     /// [`Self::scattering_phases`] at one point's coefficients `c`, for
